@@ -1,0 +1,43 @@
+#!/usr/bin/env bash
+# Idempotent set-up for a fresh Debian 12 machine: system FEniCSx stack via apt,
+# a .venv that sees the system site-packages, and jointfem installed editable with
+# numpy (and everything else compiled against the system) pinned to the system's versions.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+APT_PKGS="python3-dolfinx python3-petsc4py python3-slepc4py python3-gmsh python3-scipy python3-mpi4py python3-venv mpi-default-bin"
+missing=""
+for p in $APT_PKGS; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing="$missing $p"
+done
+if [ -n "$missing" ]; then
+  echo "setup: installing Debian packages:$missing"
+  SUDO=""; [ "$(id -u)" -ne 0 ] && SUDO="sudo"
+  $SUDO apt-get update -q
+  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -q $missing
+fi
+
+if [ ! -x .venv/bin/python ]; then
+  echo "setup: creating .venv (with system site-packages)"
+  /usr/bin/python3 -m venv --system-site-packages .venv
+fi
+
+# Pin what the system stack is compiled against, so pip never replaces it.
+/usr/bin/python3 - > .venv/constraints.txt <<'PY'
+import importlib.metadata as md
+for name in ("numpy", "scipy", "mpi4py", "petsc4py", "slepc4py", "fenics-dolfinx"):
+    try:
+        print(f"{name}=={md.version(name)}")
+    except md.PackageNotFoundError:
+        pass
+PY
+
+stamp=.venv/.jointfem-installed
+if [ ! -f "$stamp" ] || [ pyproject.toml -nt "$stamp" ]; then
+  echo "setup: pip install -e .[dev] (constrained to the system numpy)"
+  .venv/bin/python -m pip install -q --upgrade "pip>=23" -c .venv/constraints.txt
+  .venv/bin/python -m pip install -q -c .venv/constraints.txt -e ".[dev]"
+  .venv/bin/python -c "import numpy, petsc4py; from petsc4py import PETSc" \
+    || { echo "setup: numpy/petsc4py broken after install" >&2; exit 1; }
+  touch "$stamp"
+fi
