@@ -1,0 +1,295 @@
+"""Compiled (numba) kernels of the Jenkins AFT.  Same law and same tangent as the
+NumPy reference march in ``jenkins._march``; see that module for the equations.
+
+Per pair and sample the local tangents are
+
+    df_i = D_i dg_i + C_i dw_{i-1},      dw_i = A_i dg_i + B_i dw_{i-1},
+
+stick:     D = diag(kt.., kn), C = [-kt I; 0],          A = 0,                      B = I
+slip:      D = [r kt P, mu kn e; 0, kn], C = [-r kt P; 0], A = [I - r P, -mu kn e/kt], B = r P
+separated: D = 0, C = 0,                                 A = [I, 0],                 B = 0
+
+with e = t/|t|, P = I - e e^T and r = mu N/|t|.  The "direct" part (D) is
+returned per sample and transformed by the caller; the "memory" part (C dw) is
+accumulated here, with one outer product per stick interval (dw is constant
+while a pair sticks), so its cost follows the number of slip samples.
+"""
+from __future__ import annotations
+
+import numpy as np
+from numba import njit, prange
+
+STICK, SLIP, SEPARATED = 0, 1, 2
+
+
+@njit(cache=True, inline="always")
+def _law(gt0, gt1, gn, w0, w1, kt, kn, mu, N0, nt, has_normal):
+    """One return-mapping step.  Returns (state, ft0, ft1, fn, w0, w1, r, e0, e1)."""
+    if has_normal:
+        N = N0 + kn * gn
+    else:
+        N = N0
+    if N <= 0.0:
+        return SEPARATED, 0.0, 0.0, 0.0, gt0, gt1, 0.0, 0.0, 0.0
+    t0 = kt * (gt0 - w0)
+    t1 = kt * (gt1 - w1) if nt == 2 else 0.0
+    tn = np.sqrt(t0 * t0 + t1 * t1)
+    lim = mu * N
+    if tn <= lim:
+        return STICK, t0, t1, N, w0, w1, 1.0, 0.0, 0.0
+    e0 = t0 / tn
+    e1 = t1 / tn
+    r = lim / tn
+    f0 = lim * e0
+    f1 = lim * e1
+    return SLIP, f0, f1, N, gt0 - f0 / kt, (gt1 - f1 / kt) if nt == 2 else 0.0, r, e0, e1
+
+
+@njit(cache=True)
+def _period(g, kt, kn, mu, N0, nt, has_normal, w0, w1, T):
+    """March one period without forces; T (2x2) <- dw_end/dw_start.  Returns (w0, w1, moved)."""
+    N = g.shape[0]
+    T[0, 0] = 1.0
+    T[0, 1] = 0.0
+    T[1, 0] = 0.0
+    T[1, 1] = 1.0
+    moved = False
+    for i in range(N):
+        gt1 = g[i, 1] if nt == 2 else 0.0
+        gn = g[i, nt] if has_normal else 0.0
+        s, f0, f1, fn, w0, w1, r, e0, e1 = _law(g[i, 0], gt1, gn, w0, w1, kt, kn, mu, N0, nt, has_normal)
+        if s == SEPARATED:
+            moved = True
+            T[:, :] = 0.0
+        elif s == SLIP:
+            moved = True
+            # B = r (I - e e^T);  T <- B T
+            b00 = r * (1.0 - e0 * e0)
+            b01 = -r * e0 * e1
+            b11 = r * (1.0 - e1 * e1)
+            a, b, c, d = T[0, 0], T[0, 1], T[1, 0], T[1, 1]
+            T[0, 0] = b00 * a + b01 * c
+            T[0, 1] = b00 * b + b01 * d
+            T[1, 0] = b01 * a + b11 * c
+            T[1, 1] = b01 * b + b11 * d
+    return w0, w1, moved
+
+
+@njit(cache=True)
+def _steady(g, kt, kn, mu, N0, nt, has_normal, rtol, max_iter):
+    """Slider state at tau = 0 of the periodic steady state.  Returns (w0, w1, status, last_err)."""
+    T = np.empty((2, 2))
+    w0, w1, moved = _period(g, kt, kn, mu, N0, nt, has_normal, 0.0, 0.0, T)
+    if not moved:
+        return 0.0, 0.0, 0, 0.0
+    scale = mu * abs(N0) / kt
+    for i in range(g.shape[0]):
+        for a in range(nt):
+            scale = max(scale, abs(g[i, a]))
+    if scale <= 0.0:
+        scale = 1.0
+    err = np.inf
+    for _ in range(max_iter):
+        e0, e1, moved = _period(g, kt, kn, mu, N0, nt, has_normal, w0, w1, T)
+        r0 = e0 - w0
+        r1 = e1 - w1
+        err = max(abs(r0), abs(r1)) / scale
+        if err <= rtol:
+            return w0, w1, 0, err
+        if nt == 1:
+            den = 1.0 - T[0, 0]
+            w0 += r0 / den if abs(den) > 1e-12 else r0
+        else:
+            a, b, c, d = 1.0 - T[0, 0], -T[0, 1], -T[1, 0], 1.0 - T[1, 1]
+            det = a * d - b * c
+            if abs(det) > 1e-12:
+                w0 += (d * r0 - b * r1) / det
+                w1 += (-c * r0 + a * r1) / det
+            else:
+                w0 += r0
+                w1 += r1
+    return w0, w1, 1, err
+
+
+@njit(cache=True, parallel=True)
+def aft_kernel(g_t, kt, kn, mu, N0, nt, has_normal, gamma, cum_gamma_inv, trig, cum_trig, prod_table,
+               want_jac, rtol, max_iter, f_t, state_t, w_start, J_out, status, errs):
+    """Steady-state march of every pair (parallel over pairs).
+
+    In:  g_t (N, P, m); pair arrays (P,); gamma (N, nhc); cum_gamma_inv (N+1, nhc), the
+         running sums of gamma_inv^T; trig (N, 2, 2H+1) = cos/sin(k tau_i), k = 0..2H, and
+         cum_trig (N+1, 2, 2H+1) its running sums; prod_table (nhc, nhc, 7) from
+         ``_product_table`` (how gamma_inv[h] * gamma[h'] reduces to single harmonics).
+    Out: f_t (N, P, m), state_t (N, P), w_start (P, nt), status/errs (P,);
+         if want_jac: J_out (P, nhc, m, nhc*m) = dF/dG, periodicity included.
+    """
+    P = g_t.shape[1]
+    for p in prange(P):
+        _pair(p, g_t, kt[p], kn[p], mu[p], N0[p], nt, has_normal, gamma, cum_gamma_inv, trig, cum_trig,
+              prod_table, want_jac, rtol, max_iter, f_t, state_t, w_start, J_out, status, errs)
+
+
+@njit(cache=True)
+def _pair(p, g_t, ktp, knp, mup, N0p, nt, has_normal, gamma, cum_gamma_inv, trig, cum_trig, prod_table,
+          want_jac, rtol, max_iter, f_t, state_t, w_start, J_out, status, errs):
+    """Everything for pair p, with its own scratch arrays (safe under prange)."""
+    N, P, m = g_t.shape
+    nhc = gamma.shape[1]
+    nk = trig.shape[2]
+    q = nhc * m
+    nq = q + nt
+    g = g_t[:, p, :]
+    w0, w1, st, err = _steady(g, ktp, knp, mup, N0p, nt, has_normal, rtol, max_iter)
+    status[p] = st
+    errs[p] = err
+    w_start[p, 0] = w0
+    if nt == 2:
+        w_start[p, 1] = w1
+    dW = np.zeros((nt, nq))  # dw/d[G, w_start]
+    for a in range(nt):
+        dW[a, q + a] = 1.0
+    J = np.zeros((nhc, m, nq))  # memory part of dF/d[G, w_start]
+    Dh = np.zeros((2, nk, m, m))  # sum_i cos/sin(k tau_i) D_i  (direct part, k = 0..2H)
+    tmp = np.zeros((nt, nq))
+    stick_from = -1  # first sample of the current stick run, -1 if not sticking
+    moved = False
+    for i in range(N + 1):
+        if i < N:
+            gt1 = g[i, 1] if nt == 2 else 0.0
+            gn = g[i, nt] if has_normal else 0.0
+            s, f0, f1, fn, w0n, w1n, r, e0, e1 = _law(g[i, 0], gt1, gn, w0, w1, ktp, knp, mup, N0p, nt, has_normal)
+            state_t[i, p] = s
+            f_t[i, p, 0] = f0
+            if nt == 2:
+                f_t[i, p, 1] = f1
+            if has_normal:
+                f_t[i, p, nt] = fn
+            if s != STICK:
+                moved = True
+            w0, w1 = w0n, w1n
+        else:
+            s = -1  # end of period: flush a pending stick run
+        if not want_jac:
+            continue
+        if s == STICK:
+            if stick_from < 0:
+                stick_from = i
+            continue
+        if stick_from >= 0:
+            # Stick run [stick_from, i): D = diag(kt.., kn) and C dw = -kt dw with dw frozen.
+            for c in range(2):
+                for k in range(nk):
+                    w = cum_trig[i, c, k] - cum_trig[stick_from, c, k]
+                    for a in range(nt):
+                        Dh[c, k, a, a] += ktp * w
+                    if has_normal:
+                        Dh[c, k, nt, nt] += knp * w
+            for h in range(nhc):
+                cf = -ktp * (cum_gamma_inv[i, h] - cum_gamma_inv[stick_from, h])
+                if cf != 0.0:
+                    for a in range(nt):
+                        for k in range(nq):
+                            J[h, a, k] += cf * dW[a, k]
+            stick_from = -1
+        if s == SLIP:
+            e = (e0, e1)
+            # direct: D = [r kt P, mu kn e; 0, kn]
+            for c in range(2):
+                for k in range(nk):
+                    w = trig[i, c, k]
+                    for a in range(nt):
+                        for b in range(nt):
+                            Pab = (1.0 if a == b else 0.0) - e[a] * e[b]
+                            Dh[c, k, a, b] += r * ktp * Pab * w
+                        if has_normal:
+                            Dh[c, k, a, nt] += mup * knp * e[a] * w
+                    if has_normal:
+                        Dh[c, k, nt, nt] += knp * w
+            # memory: C dw = -r kt P dw (tangential rows)
+            for a in range(nt):
+                for k in range(nq):
+                    v = 0.0
+                    for b in range(nt):
+                        v += ((1.0 if a == b else 0.0) - e[a] * e[b]) * dW[b, k]
+                    tmp[a, k] = v
+            for h in range(nhc):
+                cf = -r * ktp * (cum_gamma_inv[i + 1, h] - cum_gamma_inv[i, h])
+                for a in range(nt):
+                    for k in range(nq):
+                        J[h, a, k] += cf * tmp[a, k]
+            # dw <- A dg + B dw:  B dw = r P dw;  A dg = (I - r P) dg_t - (mu kn/kt) e dg_n
+            for a in range(nt):
+                for k in range(nq):
+                    dW[a, k] = r * tmp[a, k]
+            for hh in range(nhc):
+                gv = gamma[i, hh]
+                for a in range(nt):
+                    for b in range(nt):
+                        Pab = (1.0 if a == b else 0.0) - e[a] * e[b]
+                        dW[a, hh * m + b] += ((1.0 if a == b else 0.0) - r * Pab) * gv
+                    if has_normal:
+                        dW[a, hh * m + nt] -= mup * knp * e[a] / ktp * gv
+        elif s == SEPARATED:  # D = 0, C = 0, dw = dg_t
+            for a in range(nt):
+                for k in range(nq):
+                    dW[a, k] = 0.0
+                for hh in range(nhc):
+                    dW[a, hh * m + a] = gamma[i, hh]
+    if not want_jac:
+        return
+    # Periodicity: dw*/dG = (I - T)^-1 S with S = dW[:, :q], T = dW[:, q:]; stuck-all-period pairs keep w* = 0.
+    if moved:
+        if nt == 1:
+            den = 1.0 - dW[0, q]
+            for k in range(q):
+                tmp[0, k] = dW[0, k] / den
+        else:
+            a_, b_, c_, d_ = 1.0 - dW[0, q], -dW[0, q + 1], -dW[1, q], 1.0 - dW[1, q + 1]
+            det = a_ * d_ - b_ * c_
+            for k in range(q):
+                s0, s1 = dW[0, k], dW[1, k]
+                tmp[0, k] = (d_ * s0 - b_ * s1) / det
+                tmp[1, k] = (-c_ * s0 + a_ * s1) / det
+        for h in range(nhc):
+            for a in range(m):
+                for b in range(nt):
+                    cf = J[h, a, q + b]
+                    if cf != 0.0:
+                        for k in range(q):
+                            J[h, a, k] += cf * tmp[b, k]
+    # Direct part: sum_i gamma_inv[h,i] gamma[i,h'] D_i from the single-harmonic sums Dh.
+    for h in range(nhc):
+        for h2 in range(nhc):
+            cf = prod_table[h, h2, 0]
+            i1, c1, s1 = int(prod_table[h, h2, 1]), int(prod_table[h, h2, 2]), prod_table[h, h2, 3]
+            i2, c2, s2 = int(prod_table[h, h2, 4]), int(prod_table[h, h2, 5]), prod_table[h, h2, 6]
+            for a in range(m):
+                for b in range(m):
+                    J_out[p, h, a, h2 * m + b] = J[h, a, h2 * m + b] + cf * (
+                        s1 * Dh[c1, i1, a, b] + s2 * Dh[c2, i2, a, b])
+
+
+def product_table(H: int, N: int) -> np.ndarray:
+    """gamma_inv[h, i] * gamma[i, h'] = cf * (s1 * T_c1(k1 tau_i) + s2 * T_c2(k2 tau_i)).
+
+    Row (h, h'): [cf, k1, c1, s1, k2, c2, s2] with c = 0 for cos, 1 for sin.
+    """
+    nhc = 2 * H + 1
+    order = [0] + [k for k in range(1, H + 1) for _ in (0, 1)]
+    kind = [0] + [c for _ in range(1, H + 1) for c in (0, 1)]
+    tab = np.zeros((nhc, nhc, 7))
+    for h in range(nhc):
+        for h2 in range(nhc):
+            k, k2 = order[h], order[h2]
+            cf = (1.0 if h == 0 else 2.0) / N * 0.5
+            d, sgn, ssum = abs(k - k2), float(np.sign(k - k2)), k + k2
+            if kind[h] == 0 and kind[h2] == 0:  # cos k cos k' = (cos(k-k') + cos(k+k'))/2
+                row = [cf, d, 0, 1.0, ssum, 0, 1.0]
+            elif kind[h] == 0:  # cos k sin k' = (sin(k+k') - sin(k-k'))/2
+                row = [cf, ssum, 1, 1.0, d, 1, -sgn]
+            elif kind[h2] == 0:  # sin k cos k' = (sin(k+k') + sin(k-k'))/2
+                row = [cf, ssum, 1, 1.0, d, 1, sgn]
+            else:  # sin k sin k' = (cos(k-k') - cos(k+k'))/2
+                row = [cf, d, 0, 1.0, ssum, 0, -1.0]
+            tab[h, h2] = row
+    return tab

@@ -1,0 +1,216 @@
+"""Generic pseudo-arclength continuation of R(x, lam) = 0.  Knows nothing about vibration.
+
+The caller supplies scales: the continuation works on y = x / x_scale,
+mu = lam / lam_scale and r = R / r_scale, so that one step length ``ds``
+means the same on every unknown.  A step is: tangent predictor, then Newton
+corrector on R = 0 and t . (y - y_pred) = 0 (Keller's hyperplane).  The step
+grows after easy corrections, halves after failed ones, and stays in
+[ds_min, ds_max]; a step whose tangent turns by more than ``max_turn`` is
+rejected unless it is already shorter than ``turn_ds_floor`` (no silent jumps
+over folds or onto other branches; true corners of a nonsmooth branch pass).
+"""
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+log = logging.getLogger(__name__)
+
+
+class ConvergenceError(RuntimeError):
+    """Newton failed: carries the iteration count, the last residual norm and lam."""
+
+    def __init__(self, message: str, *, iterations: int, residual: float, lam: float):
+        super().__init__(message)
+        self.iterations = iterations
+        self.residual = residual
+        self.lam = lam
+
+
+class ContinuationError(RuntimeError):
+    """Continuation cannot go on (step at its minimum, or a non-finite value)."""
+
+
+@dataclass(frozen=True)
+class NewtonOptions:
+    tol: float = 1e-10  # on max|R| / r_scale
+    max_iter: int = 15
+    step_tol: float = 1e-12  # on max|dy| (scaled): accept when the update is negligible
+
+
+@dataclass(frozen=True)
+class ContinuationOptions:
+    ds0: float = 0.02
+    ds_min: float = 1e-6
+    ds_max: float = 0.1
+    grow: float = 1.5
+    target_iter: int = 4  # grow the step if the corrector needed at most this many iterations
+    max_points: int = 5000
+    max_turn_deg: float = 45.0
+    turn_ds_floor: float = 1e-4  # steps shorter than this are not refused for turning
+    newton: NewtonOptions = field(default_factory=NewtonOptions)
+
+
+def _solve(A, b):
+    if sp.issparse(A):
+        return spla.splu(A.tocsc()).solve(b)
+    return np.linalg.solve(A, b)
+
+
+def _bordered(J, c, t):
+    """The matrix [[J, c], [t^T, 0]] (sparse if J is)."""
+    if sp.issparse(J):
+        return sp.bmat([[J, sp.csr_matrix(c[:, None])], [sp.csr_matrix(t[None, :-1]), sp.csr_matrix([[t[-1]]])]],
+                       format="csc")
+    n = J.shape[0]
+    A = np.empty((n + 1, n + 1))
+    A[:n, :n] = J
+    A[:n, n] = c
+    A[n] = t
+    return A
+
+
+def _scaled(fun, x_scale, lam_scale, r_scale):
+    """Wrap fun(x, lam) -> (R, J, dR/dlam) into scaled variables."""
+    Sx = sp.diags(x_scale) if np.ndim(x_scale) else None
+
+    def g(y, mu):
+        R, J, dl = fun(y * x_scale, mu * lam_scale)
+        if J is not None:
+            J = (J @ Sx) / r_scale if sp.issparse(J) and Sx is not None else J * x_scale / r_scale
+            dl = dl * lam_scale / r_scale
+        return R / r_scale, J, dl
+
+    return g
+
+
+def solve_newton(fun: Callable, x0: np.ndarray, lam: float, *, x_scale, r_scale: float,
+                 options: NewtonOptions = NewtonOptions()) -> tuple[np.ndarray, int]:
+    """Solve R(x, lam) = 0 at fixed lam.  Returns (x, iterations); raises ConvergenceError."""
+    g = _scaled(fun, x_scale, 1.0, r_scale)
+    y = x0 / x_scale
+    res = np.inf
+    for it in range(1, options.max_iter + 1):
+        R, J, _ = g(y, lam)
+        res = float(np.max(np.abs(R)))
+        if not np.isfinite(res):
+            break
+        if res <= options.tol:
+            return y * x_scale, it - 1
+        dy = _solve(J, -R)
+        y = y + dy
+        if np.max(np.abs(dy)) <= options.step_tol:
+            R, _, _ = g(y, lam)
+            if np.max(np.abs(R)) <= 100 * options.tol:
+                return y * x_scale, it
+    raise ConvergenceError(
+        f"Newton did not converge at lam = {lam:.9g} after {options.max_iter} iterations: "
+        f"last scaled residual max|R|/r_scale = {res:.3e} (tol {options.tol:.1e})",
+        iterations=options.max_iter, residual=res, lam=lam)
+
+
+@dataclass
+class ContinuationPoint:
+    x: np.ndarray
+    lam: float
+    iterations: int
+    ds: float
+    extra: object = None
+
+
+def _corrector(g, y_p, mu_p, t, opts: NewtonOptions):
+    """Newton on [R(y, mu); t.(z - z_p)] = 0.  Returns (y, mu, iterations) or raises."""
+    y, mu = y_p.copy(), mu_p
+    z_p = np.append(y_p, mu_p)
+    res = np.inf
+    for it in range(1, opts.max_iter + 1):
+        R, J, dl = g(y, mu)
+        res = float(np.max(np.abs(R)))
+        if not np.isfinite(res):
+            break
+        if res <= opts.tol:
+            return y, mu, it - 1
+        h = float(t @ (np.append(y, mu) - z_p))
+        dz = _solve(_bordered(J, dl, t), -np.append(R, h))
+        if not np.all(np.isfinite(dz)):
+            break
+        y, mu = y + dz[:-1], mu + dz[-1]
+        if np.max(np.abs(dz)) <= opts.step_tol:
+            R, _, _ = g(y, mu)
+            if np.max(np.abs(R)) <= 100 * opts.tol:
+                return y, mu, it
+    raise ConvergenceError(f"corrector did not converge (max|R| = {res:.3e})", iterations=opts.max_iter,
+                           residual=res, lam=mu)
+
+
+def _tangent(J, dl, t_prev):
+    t = _solve(_bordered(J, dl, t_prev), np.append(np.zeros(J.shape[0]), 1.0))
+    return t / np.linalg.norm(t)
+
+
+def continue_branch(fun: Callable, x0: np.ndarray, lam0: float, lam_end: float, *, x_scale, lam_scale: float,
+                    r_scale: float, options: ContinuationOptions = ContinuationOptions(),
+                    callback: Callable[[ContinuationPoint], None] | None = None,
+                    extra: Callable[[np.ndarray, float], object] | None = None) -> list[ContinuationPoint]:
+    """Follow R(x, lam) = 0 from (x0, lam0) until lam passes lam_end (either direction).
+
+    fun(x, lam) -> (R, dR/dx, dR/dlam).  x0 is an initial guess at lam0 (refined by Newton).
+    ``extra(x, lam)`` is stored with each point; ``callback(point)`` is called per accepted point.
+    """
+    opts = options
+    x_scale = np.broadcast_to(np.asarray(x_scale, float), np.shape(x0)).copy()
+    x, it0 = solve_newton(fun, x0, lam0, x_scale=x_scale, r_scale=r_scale, options=opts.newton)
+    g = _scaled(fun, x_scale, lam_scale, r_scale)
+    y, mu = x / x_scale, lam0 / lam_scale
+    mu_end = lam_end / lam_scale
+    direction = np.sign(mu_end - mu)
+    if direction == 0:
+        raise ValueError("lam_end equals lam0: nothing to continue")
+    points = [ContinuationPoint(x, lam0, it0, 0.0, extra(x, lam0) if extra else None)]
+    if callback:
+        callback(points[-1])
+    R, J, dl = g(y, mu)
+    e_lam = np.zeros(y.size + 1)
+    e_lam[-1] = direction
+    t = _tangent(J, dl, e_lam)
+    if t[-1] * direction < 0:
+        t = -t
+    ds = opts.ds0
+    cos_max = np.cos(np.deg2rad(opts.max_turn_deg))
+    while (mu - mu_end) * direction < 0:
+        if len(points) >= opts.max_points:
+            raise ContinuationError(f"continuation stopped after {opts.max_points} points at "
+                                    f"lam = {mu * lam_scale:.9g} before reaching {lam_end:.9g}")
+        z_p = np.append(y, mu) + ds * t
+        failure = None
+        try:
+            y_new, mu_new, it = _corrector(g, z_p[:-1], z_p[-1], t, opts.newton)
+            R, J, dl = g(y_new, mu_new)
+            t_new = _tangent(J, dl, t)
+            # A true corner of the branch (slip onset on a sampled period is one) turns the
+            # tangent however short the step; only steps longer than turn_ds_floor are refused.
+            if float(t_new @ t) < cos_max and ds > opts.turn_ds_floor:
+                failure = f"tangent turned by {np.rad2deg(np.arccos(np.clip(t_new @ t, -1, 1))):.1f} deg"
+        except (ConvergenceError, np.linalg.LinAlgError, RuntimeError) as exc:
+            failure = str(exc)
+        if failure is not None:
+            ds *= 0.5
+            log.debug("step rejected at lam=%.6g (%s); ds -> %.3g", mu * lam_scale, failure, ds)
+            if ds < opts.ds_min:
+                raise ContinuationError(
+                    f"continuation step fell below ds_min = {opts.ds_min:.1e} at lam = {mu * lam_scale:.9g} "
+                    f"after {len(points)} points; last failure: {failure}")
+            continue
+        y, mu, t = y_new, mu_new, t_new
+        x = y * x_scale
+        points.append(ContinuationPoint(x, mu * lam_scale, it, ds, extra(x, mu * lam_scale) if extra else None))
+        if callback:
+            callback(points[-1])
+        if it <= opts.target_iter:
+            ds = min(ds * opts.grow, opts.ds_max)
+    return points

@@ -1,0 +1,89 @@
+"""The harmonic-balance residual of a Structure, with its exact Jacobian.
+
+R(U, omega) = A(omega) U + sum_g B_g^T (F_g(B_g U) - f0_g) - F_ext = 0,
+
+A(omega) = I (x) K + omega (nabla (x) D) + omega^2 (nabla^2 (x) M), where nabla is the
+d/dtau matrix of the harmonic layout and B_g = I (x) G_g the gap operator of a
+contact group.  U has the harmonic-major layout of ``Harmonics`` (m), R is in N.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+from ..contact.jenkins import ContactResult, compute_aft
+from ..models.structure import Structure
+from .harmonics import Harmonics
+
+
+@dataclass
+class Evaluation:
+    R: np.ndarray  # residual, N
+    J: sp.csr_matrix | None  # dR/dU, N/m
+    dR_domega: np.ndarray | None  # N s/rad
+    contact: list[ContactResult]
+
+
+class HBMResidual:
+    """Precomputed harmonic operators for one Structure and one Harmonics."""
+
+    def __init__(self, structure: Structure, harmonics: Harmonics):
+        self.structure = structure
+        self.harmonics = harmonics
+        n, nh = structure.num_dofs, harmonics.num_hc
+        self.num_unknowns = n * nh
+        nab = sp.csr_matrix(harmonics.derivative_matrix())
+        eye = sp.identity(nh, format="csr")
+        self._A0 = sp.kron(eye, structure.K, format="csr")
+        self._A1 = sp.kron(nab, structure.D, format="csr")
+        self._A2 = sp.kron(nab @ nab, structure.M, format="csr")
+        F = np.zeros(self.num_unknowns)
+        F[harmonics.cos(1, n)] = structure.fc
+        F[harmonics.sin(1, n)] = structure.fs
+        self.F_ext = F
+        self._groups = []
+        for g in structure.contacts:
+            P, m = g.pairs.num_pairs, g.pairs.num_comp
+            B = sp.kron(eye, g.gap, format="csr")
+            f0 = np.zeros((nh, P, m))
+            f0[0] = g.pairs.preload
+            # Sparsity pattern of the per-pair Jacobian blocks [p, h, a, h', b].
+            p, h, a, h2, b = np.indices((P, nh, m, nh, m)).reshape(5, -1)
+            rows = h * P * m + p * m + a
+            cols = h2 * P * m + p * m + b
+            self._groups.append((g, B, B.T.tocsr(), f0, rows, cols))
+
+    def linear_operator(self, omega: float) -> sp.csr_matrix:
+        return (self._A0 + omega * self._A1 + omega**2 * self._A2).tocsr()
+
+    def gaps(self, U: np.ndarray) -> list[np.ndarray]:
+        """Gap coefficients per contact group, shape (num_hc, P, m)."""
+        nh = self.harmonics.num_hc
+        return [(B @ U).reshape(nh, g.pairs.num_pairs, g.pairs.num_comp) for g, B, *_ in self._groups]
+
+    def evaluate(self, U: np.ndarray, omega: float, *, jacobian: bool = True) -> Evaluation:
+        A = self.linear_operator(omega)
+        R = A @ U - self.F_ext
+        J = A if jacobian else None
+        contact = []
+        for (g, B, BT, f0, rows, cols), G in zip(self._groups, self.gaps(U)):
+            res = compute_aft(g.pairs, G, self.harmonics, jacobian=jacobian)
+            contact.append(res)
+            R = R + BT @ (res.F - f0).ravel()
+            if jacobian:
+                size = B.shape[0]
+                Jc = sp.csr_matrix((res.J.ravel(), (rows, cols)), shape=(size, size))
+                J = J + BT @ Jc @ B
+        dR = (self._A1 + 2.0 * omega * self._A2) @ U if jacobian else None
+        return Evaluation(R, J.tocsr() if jacobian else None, dR, contact)
+
+    def linear_solution(self, omega: float) -> np.ndarray:
+        """Coefficients of the stuck linear response at omega (the continuation's start), m."""
+        X = self.structure.linear_response(omega)
+        n = self.structure.num_dofs
+        U = np.zeros(self.num_unknowns)
+        U[self.harmonics.cos(1, n)] = X.real
+        U[self.harmonics.sin(1, n)] = -X.imag
+        return U

@@ -1,0 +1,84 @@
+"""The physical model handed from the builders to the solvers: plain NumPy/SciPy data."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+
+from ..contact.jenkins import JenkinsPairs
+
+
+@dataclass(frozen=True)
+class ContactGroup:
+    """Jenkins pairs and the gap operator that maps DOFs to their local gaps.
+
+    gap: sparse, shape (P*m, n): row p*m + a is component a (t1, [t2], [n]) of the
+    relative displacement of pair p in its local frame, m.
+    names: a label per pair (for outputs and plots).
+    coords: a reference position per pair, shape (P, 3), m (for plots).
+    """
+
+    pairs: JenkinsPairs
+    gap: sp.csr_matrix
+    names: tuple[str, ...] = ()
+    coords: np.ndarray | None = None
+
+    def __post_init__(self):
+        P, m = self.pairs.num_pairs, self.pairs.num_comp
+        if self.gap.shape[0] != P * m:
+            raise ValueError(f"gap operator has {self.gap.shape[0]} rows, expected {P}*{m}")
+
+    @property
+    def stuck_stiffness(self) -> sp.csr_matrix:
+        """G^T Kc G: the group's contribution to the linearised (all-stuck) stiffness, N/m."""
+        kc = sp.diags(self.pairs.stiffness.ravel())
+        return (self.gap.T @ kc @ self.gap).tocsr()
+
+
+@dataclass(frozen=True)
+class Structure:
+    """M u'' + D u' + K u + sum_g G_g^T (f_g(G_g u) - f0_g) = Re[(fc - i fs) e^{i omega t}].
+
+    K, M, D: sparse (n, n) in N/m, kg, N s/m.  The external force is
+    fc cos(omega t) + fs sin(omega t), N.  The static preload f0 of every
+    contact group is balanced by a static external load (bolt force), so only
+    the change of the contact force drives the dynamics.
+    """
+
+    K: sp.csr_matrix
+    M: sp.csr_matrix
+    D: sp.csr_matrix
+    fc: np.ndarray
+    fs: np.ndarray
+    contacts: tuple[ContactGroup, ...] = ()
+    dof_names: tuple[str, ...] = ()
+    outputs: dict = field(default_factory=dict)  # name -> dof index
+    info: dict = field(default_factory=dict)
+
+    @property
+    def num_dofs(self) -> int:
+        return self.K.shape[0]
+
+    @property
+    def num_pairs(self) -> int:
+        return sum(g.pairs.num_pairs for g in self.contacts)
+
+    @property
+    def K_lin(self) -> sp.csr_matrix:
+        """Linearised stiffness with every contact pair stuck (paper Eq. 7), N/m."""
+        K = self.K.copy()
+        for g in self.contacts:
+            K = K + g.stuck_stiffness
+        return K.tocsr()
+
+    def linear_response(self, omega: float | np.ndarray) -> np.ndarray:
+        """Complex amplitude of the stuck linear system, u = Re[X e^{i omega t}], shape (..., n), m."""
+        f = self.fc - 1j * self.fs
+        Kl = self.K_lin.tocsc()
+        out = []
+        for w in np.atleast_1d(omega):
+            Z = (Kl - w**2 * self.M + 1j * w * self.D).tocsc()
+            out.append(sp.linalg.spsolve(Z, f))
+        X = np.array(out)
+        return X[0] if np.ndim(omega) == 0 else X

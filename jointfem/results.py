@@ -1,0 +1,147 @@
+"""Frequency responses: derived quantities and files a user can open (CSV, NPZ, JSON)."""
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .contact.jenkins import STATE_NAMES
+from .hbm.harmonics import Harmonics
+
+
+class OutputError(RuntimeError):
+    """A result holds a non-finite value and would not be written."""
+
+
+@dataclass
+class FrequencyResponse:
+    """A solved branch.
+
+    omega: (num_points,) rad/s.  U: (num_points, num_hc * n) harmonic coefficients, m.
+    states: (num_points, N, num_pairs) int8, 0 stick / 1 slip / 2 separated.
+    iterations: Newton iterations per point.  outputs: name -> dof index.
+    """
+
+    omega: np.ndarray
+    U: np.ndarray
+    iterations: np.ndarray
+    states: np.ndarray
+    harmonics: Harmonics
+    num_dofs: int
+    outputs: dict
+    dof_names: tuple = ()
+    pair_names: tuple = ()
+    info: dict = field(default_factory=dict)
+
+    @property
+    def num_points(self) -> int:
+        return self.omega.size
+
+    def coefficients(self, dof: int) -> np.ndarray:
+        """Harmonic coefficients of one DOF, shape (num_points, num_hc), m."""
+        return self.U.reshape(self.num_points, self.harmonics.num_hc, self.num_dofs)[:, :, dof]
+
+    def amplitude(self, dof: int, k: int = 1) -> np.ndarray:
+        """Amplitude of harmonic k of one DOF along the branch, m."""
+        return self.harmonics.amplitude(self.coefficients(dof).T, k)
+
+    def half_peak_to_peak(self, dof: int, *, samples: int = 512) -> np.ndarray:
+        """Half the peak-to-peak displacement over one period, m (sampled finely)."""
+        fine = Harmonics(self.harmonics.H, max(samples, self.harmonics.N))
+        u_t = fine.to_time(self.coefficients(dof).T)
+        return 0.5 * (u_t.max(axis=0) - u_t.min(axis=0))
+
+    def peak(self, name: str) -> tuple[float, float]:
+        """(omega, amplitude) of the largest first-harmonic amplitude of an output, parabola-refined."""
+        a = self.amplitude(self.outputs[name])
+        i = int(np.argmax(a))
+        if 0 < i < a.size - 1:
+            w = self.omega[i - 1 : i + 2]
+            c = np.polyfit(w - w[1], a[i - 1 : i + 2], 2)
+            if c[0] < 0:
+                dw = -c[1] / (2 * c[0])
+                if abs(dw) <= max(abs(w[2] - w[1]), abs(w[1] - w[0])):
+                    return float(w[1] + dw), float(np.polyval(c, dw))
+        return float(self.omega[i]), float(a[i])
+
+    def state_fractions(self) -> np.ndarray:
+        """Fraction of the period in each state, shape (num_points, num_pairs, 3)."""
+        return np.stack([(self.states == s).mean(axis=1) for s in range(3)], axis=-1)
+
+
+def _check_finite(name: str, a: np.ndarray):
+    bad = ~np.isfinite(a)
+    if bad.any():
+        idx = np.argwhere(bad)[0]
+        raise OutputError(f"{name} holds a non-finite value at index {tuple(int(i) for i in idx)}; nothing written")
+
+
+def _atomic_write(path: Path, write):
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=path.suffix)
+    os.close(fd)
+    try:
+        write(tmp)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+def save_frf(frf: FrequencyResponse, out: Path, *, summary: dict) -> dict:
+    """Write frf.csv, branch.npz and summary.json into ``out``.  Returns the summary written."""
+    out = Path(out)
+    _check_finite("omega", frf.omega)
+    _check_finite("harmonic coefficients U", frf.U)
+    names = list(frf.outputs)
+    cols = [frf.omega, frf.omega / (2 * np.pi)]
+    header = ["omega_rad_s", "freq_Hz"]
+    for name in names:
+        dof = frf.outputs[name]
+        cols += [frf.amplitude(dof), frf.half_peak_to_peak(dof)]
+        header += [f"{name}_amp1_m", f"{name}_halfp2p_m"]
+    table = np.column_stack(cols)
+    _atomic_write(out / "frf.csv", lambda p: np.savetxt(p, table, delimiter=",", header=",".join(header),
+                                                        comments="", fmt="%.12e"))
+
+    def write_npz(p):
+        with open(p, "wb") as fh:
+            np.savez_compressed(
+                fh, omega=frf.omega, U=frf.U, iterations=frf.iterations, states=frf.states,
+                H=frf.harmonics.H, N=frf.harmonics.N, num_dofs=frf.num_dofs,
+                dof_names=np.array(frf.dof_names, dtype=str), pair_names=np.array(frf.pair_names, dtype=str),
+                output_names=np.array(names, dtype=str), output_dofs=np.array([frf.outputs[k] for k in names]),
+                state_names=np.array(STATE_NAMES), layout=np.array("harmonic-major: U[j*n + dof], j=0 const, 2k-1 cos k, 2k sin k"),
+                **{k: np.asarray(v) for k, v in frf.info.get("arrays", {}).items()})
+
+    _atomic_write(out / "branch.npz", write_npz)
+    peaks = {}
+    for name in names:
+        w, a = frf.peak(name)
+        peaks[name] = {"omega_rad_s": w, "freq_Hz": w / (2 * np.pi), "amp1_m": a}
+    summary = dict(summary)
+    summary.update({"num_points": int(frf.num_points), "newton_iterations_total": int(frf.iterations.sum()),
+                    "peaks": peaks})
+    _atomic_write(out / "summary.json", lambda p: Path(p).write_text(json.dumps(summary, indent=2, default=_json)))
+    return summary
+
+
+def _json(o):
+    if isinstance(o, np.generic):
+        return o.item()
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    if isinstance(o, Path):
+        return str(o)
+    raise TypeError(f"not JSON serialisable: {type(o)}")
+
+
+def load_branch(path: Path) -> dict:
+    """Read branch.npz back into a dict of arrays."""
+    with np.load(Path(path), allow_pickle=False) as z:
+        return {k: z[k] for k in z.files}
