@@ -10,6 +10,15 @@ from jointfem.contact.jenkins import STICK, SLIP, SEPARATED, ContactError, Conta
 from jointfem.hbm.harmonics import Harmonics
 
 
+def _phi(a, b):
+    """Vectorised twin of jointfem.contact._kernels._phi (used where a > 0)."""
+    cross = b <= 0
+    d = np.where(cross, a - b, 1.0)
+    d = np.where(d == 0, 1.0, d)
+    return (np.where(cross, a * a / d, a), np.where(cross, a * (a - 2 * b) / d**2, 1.0),
+            np.where(cross, a * a / d**2, 0.0))
+
+
 def _march(pairs: JenkinsPairs, g_t: np.ndarray, w_start: np.ndarray, *, gamma: np.ndarray | None = None,
            gamma_inv: np.ndarray | None = None, need_T: bool = False):
     """March one period from ``w_start``.
@@ -60,7 +69,12 @@ def _march(pairs: JenkinsPairs, g_t: np.ndarray, w_start: np.ndarray, *, gamma: 
         w_new = np.where(stick[:, None], w, np.where(sep[:, None], gt, gt - ft / kt))
         f_t[i, :, :nt] = ft
         if pairs.has_normal:
-            f_t[i, :, nt] = np.where(sep, 0.0, N)
+            # crossing-corrected normal force next to a separated sample
+            n_prev = pairs.N0 + pairs.kn * g_t[(i - 1) % N_t, :, nt]
+            n_next = pairs.N0 + pairs.kn * g_t[(i + 1) % N_t, :, nt]
+            pa, pa_a, pa_b = _phi(N, n_next)
+            pb, pb_a, pb_b = _phi(N, n_prev)
+            f_t[i, :, nt] = np.where(sep, 0.0, 0.5 * (pa + pb))
         state_t[i] = np.where(sep, SEPARATED, np.where(slip, SLIP, STICK))
         if tangent:
             # dg_i/dparam: kron(gamma[i], I_m), zero on the w_start columns.
@@ -81,7 +95,12 @@ def _march(pairs: JenkinsPairs, g_t: np.ndarray, w_start: np.ndarray, *, gamma: 
             df = df_chunk[i % chunk]
             df[:, :nt] = dft
             if pairs.has_normal:
-                df[:, nt] = np.where(sep[:, None], 0.0, pairs.kn[:, None] * dg[nt][None, :])
+                row = lambda j: np.kron(gamma[j % N_t], eye_m)[nt]  # noqa: E731
+                dn = np.zeros((P, nq))
+                dn[:, :q] = 0.5 * pairs.kn[:, None] * ((pa_a + pb_a)[:, None] * row(i)[None]
+                                                       + pa_b[:, None] * row(i + 1)[None]
+                                                       + pb_b[:, None] * row(i - 1)[None])
+                df[:, nt] = np.where(sep[:, None], 0.0, dn)
             dW = np.where(stick[:, None, None], dW,
                           np.where(sep[:, None, None], dgt[None], dgt[None] - dft / kt[:, :, None]))
             if (i + 1) % chunk == 0 or i == N_t - 1:
@@ -107,70 +126,74 @@ def _march(pairs: JenkinsPairs, g_t: np.ndarray, w_start: np.ndarray, *, gamma: 
     return f_t, state_t, w, (T if need_T else None)
 
 
-def compute_steady_slider(pairs: JenkinsPairs, g_t: np.ndarray, *, rtol: float = 1e-12,
-                          max_iter: int = 50) -> np.ndarray:
-    """Slider state at tau = 0 of the periodic steady state, shape (P, nt)."""
-    P = pairs.num_pairs
-    nt = pairs.num_tangential
-    w0 = np.zeros((P, nt))
-    # Length scale for the convergence test: the slip length and the gap amplitude.
-    scale = np.maximum(pairs.mu * np.abs(pairs.N0) / pairs.kt, np.abs(g_t[:, :, :nt]).max(axis=(0, 2)))
-    scale = np.where(scale > 0, scale, 1.0)
-    _, state_t, w1, _ = _march(pairs, g_t, w0)
-    active = (state_t != STICK).any(axis=0)
-    if not active.any():
-        return w0  # every pair sticks about the unloaded position: linear spring
-    w = np.where(active[:, None], w1, w0)
-    eye = np.eye(nt)
-    last = np.inf
-    for _ in range(max_iter):
-        _, state_t, w_end, T = _march(pairs, g_t, w, need_T=True)
-        r = w_end - w
-        err = np.abs(r).max(axis=1) / scale
-        last = float(err.max())
-        if last <= rtol:
-            return w
-        # Newton on the fixed point for pairs that slip in this period, plain iteration otherwise.
-        moved = (state_t != STICK).any(axis=0)
-        step = r.copy()
-        if moved.any():
-            A = eye[None] - T[moved]
-            ok = np.abs(np.linalg.det(A)) > 1e-12
-            idx = np.flatnonzero(moved)[ok]
-            step[idx] = np.linalg.solve(A[ok], r[idx][..., None])[..., 0]
-        w = w + step
-    raise ContactError(
-        f"slider steady state not reached after {max_iter} periods: max relative change {last:.3e} > {rtol:.1e}"
-    )
+def compute_steady_slider(pairs: JenkinsPairs, g_t: np.ndarray, *, rtol: float = 1e-12, max_iter: int = 50,
+                          num_plain: int = 8):
+    """Steady slider state at tau = 0, marched from w = 0, pair by pair.
+
+    Returns (w_start (P, nt), kind (P,), num_transient (P,)) with the kinds of the kernel:
+    0 stuck from w = 0, 1 slipping steady period, 2 shakedown after num_transient periods.
+    """
+    P, nt = pairs.num_pairs, pairs.num_tangential
+    w_out = np.zeros((P, nt))
+    kind = np.zeros(P, dtype=int)
+    ntr = np.zeros(P, dtype=int)
+    for p in range(P):
+        one = JenkinsPairs(kt=pairs.kt[p:p + 1], kn=pairs.kn[p:p + 1], mu=pairs.mu[p:p + 1], N0=pairs.N0[p:p + 1],
+                           num_tangential=nt, has_normal=pairs.has_normal)
+        g = g_t[:, p:p + 1]
+        scale = max(pairs.mu[p] * abs(pairs.N0[p]) / pairs.kt[p], np.abs(g[:, :, :nt]).max())
+        scale = scale if scale > 0 else 1.0
+        w = np.zeros((1, nt))
+        for it in range(max_iter):
+            _, state_t, w_end, T = _march(one, g, w, need_T=True)
+            if not (state_t != STICK).any():
+                kind[p], ntr[p] = (0 if it == 0 else 2), it
+                break
+            r = w_end - w
+            if np.abs(r).max() / scale <= rtol:
+                kind[p], ntr[p] = 1, it
+                break
+            if it < num_plain:
+                w = w_end
+            else:
+                A = np.eye(nt) - T[0]
+                w = w + (np.linalg.solve(A, r[0]) if abs(np.linalg.det(A)) > 1e-12 else r[0])
+        else:
+            raise ContactError(f"slider steady state not reached for pair {p}")
+        w_out[p] = w[0]
+    return w_out, kind, ntr
 
 
 def compute_aft_reference(pairs: JenkinsPairs, G: np.ndarray, harmonics: Harmonics, *, jacobian: bool = True) -> ContactResult:
-    """Alternating frequency-time evaluation of a group of Jenkins pairs.
+    """Alternating frequency-time evaluation of a group of Jenkins pairs (reference).
 
     G: gap coefficients, shape (num_hc, P, m), m.  Returns a ContactResult.
+    The Jacobian is closed by the chain rule through w_start: kind 1 by the fixed point,
+    dw*/dG = (I - T)^-1 S; kind 2 through the transient periods, S_k + T_k S_(k-1).
     """
     G = np.asarray(G, dtype=float)
     num_hc, P, m = G.shape
-    if num_hc != harmonics.num_hc or P != pairs.num_pairs or m != pairs.num_comp:
-        raise ValueError(f"gap coefficients of shape {G.shape} do not fit {harmonics} and {P} pairs x {pairs.num_comp}")
     g_t = harmonics.to_time(G)
-    w_start = compute_steady_slider(pairs, g_t)
+    w_start, kind, ntr = compute_steady_slider(pairs, g_t)
     if not jacobian:
         f_t, state_t, _, _ = _march(pairs, g_t, w_start)
         return ContactResult(harmonics.from_time(f_t), None, f_t, g_t, state_t, w_start)
-    f_t, state_t, _, J_G, J_w, S, T = _march(pairs, g_t, w_start, gamma=harmonics.gamma,
-                                              gamma_inv=harmonics.gamma_inv)
-    # Periodicity of the slider: w* = P(w*, G)  =>  dw*/dG = (I - T)^-1 S for pairs that slip
-    # or separate; a pair stuck all period keeps w* = 0, independent of G.
-    moved = (state_t != STICK).any(axis=0)
-    J = J_G
-    if moved.any():
-        nt = pairs.num_tangential
-        A = np.eye(nt)[None] - T[moved]
-        dw = np.linalg.solve(A, S[moved])  # (Pm, nt, q)
-        J = J_G.copy()
-        J[moved] += np.einsum("phac,pcq->phaq", J_w[moved], dw)
+    gam, gami = harmonics.gamma, harmonics.gamma_inv
+    f_t, state_t, _, J_G, J_w, S, T = _march(pairs, g_t, w_start, gamma=gam, gamma_inv=gami)
+    nt = pairs.num_tangential
+    J = J_G.copy()
+    for p in range(P):
+        if kind[p] == 1:
+            dw = np.linalg.solve(np.eye(nt) - T[p], S[p])
+        elif kind[p] == 2:
+            dw = np.zeros_like(S[p])
+            w = np.zeros((P, nt))
+            for _ in range(ntr[p]):
+                _, _, w_end, _, _, S_k, T_k = _march(pairs, g_t, w, gamma=gam, gamma_inv=gami)
+                dw = S_k[p] + T_k[p] @ dw
+                w = w_end
+        else:
+            continue
+        J[p] += J_w[p] @ dw
     J = J.reshape(P, num_hc, m, num_hc, m)
     return ContactResult(harmonics.from_time(f_t), J, f_t, g_t, state_t, w_start)
-
-

@@ -45,6 +45,20 @@ def _law(gt0, gt1, gn, w0, w1, kt, kn, mu, N0, nt, has_normal):
     return SLIP, f0, f1, N, gt0 - f0 / kt, (gt1 - f1 / kt) if nt == 2 else 0.0, r, e0, e1
 
 
+@njit(cache=True, inline="always")
+def _phi(a, b):
+    """Crossing-corrected share of sample value a > 0 on the interval towards a neighbour b.
+
+    Returns (phi, dphi/da, dphi/db).  With the normal force linear between samples, the
+    trapezoid rule on the part of the interval still in contact gives a^2/(a - b) when the
+    neighbour is separated (b <= 0); a otherwise.
+    """
+    if b > 0.0:
+        return a, 1.0, 0.0
+    d = a - b
+    return a * a / d, a * (a - 2.0 * b) / (d * d), a * a / (d * d)
+
+
 @njit(cache=True)
 def _period(g, kt, kn, mu, N0, nt, has_normal, w0, w1, T):
     """March one period without forces; T (2x2) <- dw_end/dw_start.  Returns (w0, w1, moved)."""
@@ -75,28 +89,100 @@ def _period(g, kt, kn, mu, N0, nt, has_normal, w0, w1, T):
     return w0, w1, moved
 
 
+@njit(cache=True, inline="always")
+def _advance_dW(s, r, e0, e1, gamma_i, dW, tmp, m, nt, has_normal, kt, kn, mu):
+    """dw_i = A_i dg_i + B_i dw_{i-1} in place (slip or separated sample; stick leaves dw).
+
+    On a slip sample ``tmp`` must already hold P dw_{i-1}.
+    """
+    nhc = gamma_i.shape[0]
+    nq = dW.shape[1]
+    e = (e0, e1)
+    if s == SLIP:
+        for a in range(nt):
+            for k in range(nq):
+                dW[a, k] = r * tmp[a, k]
+        for hh in range(nhc):
+            gv = gamma_i[hh]
+            for a in range(nt):
+                for b in range(nt):
+                    Pab = (1.0 if a == b else 0.0) - e[a] * e[b]
+                    dW[a, hh * m + b] += ((1.0 if a == b else 0.0) - r * Pab) * gv
+                if has_normal:
+                    dW[a, hh * m + nt] -= mu * kn * e[a] / kt * gv
+    elif s == SEPARATED:
+        for a in range(nt):
+            for k in range(nq):
+                dW[a, k] = 0.0
+            for hh in range(nhc):
+                dW[a, hh * m + a] = gamma_i[hh]
+
+
+@njit(cache=True, inline="always")
+def _project(e0, e1, dW, tmp, nt):
+    """tmp <- (I - e e^T) dW."""
+    e = (e0, e1)
+    for a in range(nt):
+        for k in range(dW.shape[1]):
+            v = 0.0
+            for b in range(nt):
+                v += ((1.0 if a == b else 0.0) - e[a] * e[b]) * dW[b, k]
+            tmp[a, k] = v
+
+
+@njit(cache=True)
+def _transient_tangent(g, kt, kn, mu, N0, nt, has_normal, gamma, num_periods, q):
+    """d w / d G after ``num_periods`` periods marched from w = 0 (the shakedown of a pair that
+    slips in its transient and then sticks for good).  Returns dW of shape (nt, q)."""
+    N, m = g.shape
+    dW = np.zeros((nt, q))
+    tmp = np.zeros((nt, q))
+    w0, w1 = 0.0, 0.0
+    for _ in range(num_periods):
+        for i in range(N):
+            gt1 = g[i, 1] if nt == 2 else 0.0
+            gn = g[i, nt] if has_normal else 0.0
+            s, f0, f1, fn, w0, w1, r, e0, e1 = _law(g[i, 0], gt1, gn, w0, w1, kt, kn, mu, N0, nt, has_normal)
+            if s == SLIP:
+                _project(e0, e1, dW, tmp, nt)
+            if s != STICK:
+                _advance_dW(s, r, e0, e1, gamma[i], dW, tmp, m, nt, has_normal, kt, kn, mu)
+    return dW
+
+
 @njit(cache=True)
 def _steady(g, kt, kn, mu, N0, nt, has_normal, rtol, max_iter):
-    """Slider state at tau = 0 of the periodic steady state.  Returns (w0, w1, status, last_err)."""
+    """Slider state at tau = 0 of the periodic steady state, marched from w = 0.
+
+    Returns (w0, w1, status, last_err, kind, num_transient):
+    kind 0: sticks all period from w = 0 (w* = 0);
+    kind 1: slips or separates in the steady period (w* isolated fixed point of the period map);
+    kind 2: shakedown, slipped for ``num_transient`` periods and then sticks for good;
+    status 1 if not converged.  Plain periods first (exact path, 1D is periodic after one
+    slipping period); Newton on the fixed point if that is slow (2D gross slip).
+    """
     T = np.empty((2, 2))
-    w0, w1, moved = _period(g, kt, kn, mu, N0, nt, has_normal, 0.0, 0.0, T)
-    if not moved:
-        return 0.0, 0.0, 0, 0.0
     scale = mu * abs(N0) / kt
     for i in range(g.shape[0]):
         for a in range(nt):
             scale = max(scale, abs(g[i, a]))
     if scale <= 0.0:
         scale = 1.0
+    w0, w1 = 0.0, 0.0
     err = np.inf
-    for _ in range(max_iter):
+    num_plain = 8
+    for it in range(max_iter):
         e0, e1, moved = _period(g, kt, kn, mu, N0, nt, has_normal, w0, w1, T)
+        if not moved:
+            return w0, w1, 0, 0.0, (0 if it == 0 else 2), it
         r0 = e0 - w0
         r1 = e1 - w1
         err = max(abs(r0), abs(r1)) / scale
         if err <= rtol:
-            return w0, w1, 0, err
-        if nt == 1:
+            return w0, w1, 0, err, 1, it
+        if it < num_plain:
+            w0, w1 = e0, e1
+        elif nt == 1:
             den = 1.0 - T[0, 0]
             w0 += r0 / den if abs(den) > 1e-12 else r0
         else:
@@ -108,7 +194,7 @@ def _steady(g, kt, kn, mu, N0, nt, has_normal, rtol, max_iter):
             else:
                 w0 += r0
                 w1 += r1
-    return w0, w1, 1, err
+    return w0, w1, 1, err, 1, max_iter
 
 
 @njit(cache=True, parallel=True)
@@ -139,15 +225,19 @@ def _pair(p, g_t, ktp, knp, mup, N0p, nt, has_normal, gamma, cum_gamma_inv, trig
     q = nhc * m
     nq = q + nt
     g = g_t[:, p, :]
-    w0, w1, st, err = _steady(g, ktp, knp, mup, N0p, nt, has_normal, rtol, max_iter)
+    w0, w1, st, err, kind, num_transient = _steady(g, ktp, knp, mup, N0p, nt, has_normal, rtol, max_iter)
     status[p] = st
     errs[p] = err
     w_start[p, 0] = w0
     if nt == 2:
         w_start[p, 1] = w1
     dW = np.zeros((nt, nq))  # dw/d[G, w_start]
-    for a in range(nt):
-        dW[a, q + a] = 1.0
+    if want_jac:
+        if kind == 1:  # periodic slip: differentiate w.r.t. w_start, then close the period below
+            for a in range(nt):
+                dW[a, q + a] = 1.0
+        elif kind == 2:  # shakedown: w* depends on G through the transient
+            dW[:, :q] = _transient_tangent(g, ktp, knp, mup, N0p, nt, has_normal, gamma, num_transient, q)
     J = np.zeros((nhc, m, nq))  # memory part of dF/d[G, w_start]
     Dh = np.zeros((2, nk, m, m))  # sum_i cos/sin(k tau_i) D_i  (direct part, k = 0..2H)
     tmp = np.zeros((nt, nq))
@@ -162,6 +252,19 @@ def _pair(p, g_t, ktp, knp, mup, N0p, nt, has_normal, gamma, cum_gamma_inv, trig
             f_t[i, p, 0] = f0
             if nt == 2:
                 f_t[i, p, 1] = f1
+            Dnn = knp  # d N_eff / d g_n at this sample
+            cross_prev = 0.0  # d N_eff / d g_n at the previous / next sample (crossings only)
+            cross_next = 0.0
+            if has_normal and s != SEPARATED:
+                # Normal force of a sample next to a separated one: crossing-corrected (see _phi).
+                n_prev = N0p + knp * g[(i - 1) % N, nt]
+                n_next = N0p + knp * g[(i + 1) % N, nt]
+                pa, pa_a, pa_b = _phi(fn, n_next)
+                pb, pb_a, pb_b = _phi(fn, n_prev)
+                fn = 0.5 * (pa + pb)
+                Dnn = 0.5 * knp * (pa_a + pb_a)
+                cross_next = 0.5 * knp * pa_b
+                cross_prev = 0.5 * knp * pb_b
             if has_normal:
                 f_t[i, p, nt] = fn
             if s != STICK:
@@ -169,8 +272,24 @@ def _pair(p, g_t, ktp, knp, mup, N0p, nt, has_normal, gamma, cum_gamma_inv, trig
             w0, w1 = w0n, w1n
         else:
             s = -1  # end of period: flush a pending stick run
+            Dnn = knp
+            cross_prev = 0.0
+            cross_next = 0.0
         if not want_jac:
             continue
+        if has_normal and s != SEPARATED:
+            if Dnn != knp:  # stick runs and slip samples below assume kn: correct the difference
+                for c in range(2):
+                    for k in range(nk):
+                        Dh[c, k, nt, nt] += (Dnn - knp) * trig[i, c, k]
+            for side in range(2):
+                cf_n = cross_next if side == 0 else cross_prev
+                if cf_n != 0.0:
+                    j = (i + 1) % N if side == 0 else (i - 1) % N
+                    for h in range(nhc):
+                        gi = (cum_gamma_inv[i + 1, h] - cum_gamma_inv[i, h]) * cf_n
+                        for h2 in range(nhc):
+                            J[h, nt, h2 * m + nt] += gi * gamma[j, h2]
         if s == STICK:
             if stick_from < 0:
                 stick_from = i
@@ -206,39 +325,18 @@ def _pair(p, g_t, ktp, knp, mup, N0p, nt, has_normal, gamma, cum_gamma_inv, trig
                     if has_normal:
                         Dh[c, k, nt, nt] += knp * w
             # memory: C dw = -r kt P dw (tangential rows)
-            for a in range(nt):
-                for k in range(nq):
-                    v = 0.0
-                    for b in range(nt):
-                        v += ((1.0 if a == b else 0.0) - e[a] * e[b]) * dW[b, k]
-                    tmp[a, k] = v
+            _project(e0, e1, dW, tmp, nt)
             for h in range(nhc):
                 cf = -r * ktp * (cum_gamma_inv[i + 1, h] - cum_gamma_inv[i, h])
                 for a in range(nt):
                     for k in range(nq):
                         J[h, a, k] += cf * tmp[a, k]
-            # dw <- A dg + B dw:  B dw = r P dw;  A dg = (I - r P) dg_t - (mu kn/kt) e dg_n
-            for a in range(nt):
-                for k in range(nq):
-                    dW[a, k] = r * tmp[a, k]
-            for hh in range(nhc):
-                gv = gamma[i, hh]
-                for a in range(nt):
-                    for b in range(nt):
-                        Pab = (1.0 if a == b else 0.0) - e[a] * e[b]
-                        dW[a, hh * m + b] += ((1.0 if a == b else 0.0) - r * Pab) * gv
-                    if has_normal:
-                        dW[a, hh * m + nt] -= mup * knp * e[a] / ktp * gv
-        elif s == SEPARATED:  # D = 0, C = 0, dw = dg_t
-            for a in range(nt):
-                for k in range(nq):
-                    dW[a, k] = 0.0
-                for hh in range(nhc):
-                    dW[a, hh * m + a] = gamma[i, hh]
+        if s == SLIP or s == SEPARATED:  # separated: D = 0, C = 0, dw = dg_t
+            _advance_dW(s, r, e0, e1, gamma[i], dW, tmp, m, nt, has_normal, ktp, knp, mup)
     if not want_jac:
         return
-    # Periodicity: dw*/dG = (I - T)^-1 S with S = dW[:, :q], T = dW[:, q:]; stuck-all-period pairs keep w* = 0.
-    if moved:
+    # Periodicity: dw*/dG = (I - T)^-1 S with S = dW[:, :q], T = dW[:, q:] (kind 1 only).
+    if kind == 1:
         if nt == 1:
             den = 1.0 - dW[0, q]
             for k in range(q):

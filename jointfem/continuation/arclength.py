@@ -39,8 +39,13 @@ class ContinuationError(RuntimeError):
 @dataclass(frozen=True)
 class NewtonOptions:
     tol: float = 1e-10  # on max|R| / r_scale
-    max_iter: int = 15
+    max_iter: int = 40
+    kink_tol: float = 1e-5  # a root on a kink of the sampled law is accepted below this (see _damped_newton);
+    # the AFT sampling error of a nonsmooth law is O(N^-2), about 1e-5 relative at N = 256, so
+    # demanding less of a stalled Newton would not make the answer more accurate
+    stall_iter: int = 8
     step_tol: float = 1e-12  # on max|dy| (scaled): accept when the update is negligible
+    max_backtrack: int = 6  # step halvings of the line search
 
 
 @dataclass(frozen=True)
@@ -89,29 +94,65 @@ def _scaled(fun, x_scale, lam_scale, r_scale):
     return g
 
 
+def _damped_newton(F, z0, opts: "NewtonOptions", what: str, lam_of):
+    """Newton with backtracking on ||r||_2.  F(z) -> (r, A).
+
+    Returns (z, iterations, max|r|); raises ConvergenceError.  The residual of a sampled
+    Jenkins law is only piecewise smooth: at a kink, one-sided Jacobians make Newton cycle,
+    which the backtracking breaks.  If a root sits on a kink, Newton may stall above ``tol``;
+    it is then accepted only below ``kink_tol`` and after ``stall_iter`` iterations without
+    halving the best residual, and the achieved residual is returned for the record.
+    """
+    z = z0
+    r, A = F(z)
+    res = float(np.max(np.abs(r))) if r.size else 0.0
+    best_res, best_z, best_it = res, z, 0
+    for it in range(opts.max_iter + 1):
+        if not np.isfinite(res):
+            break
+        if res <= opts.tol:
+            return z, it, res
+        if res < 0.5 * best_res:
+            best_res, best_z, best_it = res, z, it
+        elif res < best_res:
+            best_res, best_z = res, z
+        if it - best_it >= opts.stall_iter and best_res <= opts.kink_tol:
+            return best_z, it, best_res
+        if it == opts.max_iter:
+            break
+        dz = _solve(A, -r)
+        if not np.all(np.isfinite(dz)):
+            break
+        norm0 = np.linalg.norm(r)
+        alpha, best = 1.0, None
+        for _ in range(opts.max_backtrack + 1):
+            zt = z + alpha * dz
+            rt, At = F(zt)
+            nt = np.linalg.norm(rt)
+            if best is None or nt < best[0]:
+                best = (nt, zt, rt, At)
+            if nt <= (1.0 - 1e-4 * alpha) * norm0:
+                break
+            alpha *= 0.5
+        _, z, r, A = best
+        res = float(np.max(np.abs(r)))
+    raise ConvergenceError(
+        f"{what} did not converge at lam = {lam_of(z):.9g} after {opts.max_iter} iterations: "
+        f"last scaled residual max|R|/r_scale = {res:.3e} (tol {opts.tol:.1e})",
+        iterations=opts.max_iter, residual=res, lam=lam_of(z))
+
+
 def solve_newton(fun: Callable, x0: np.ndarray, lam: float, *, x_scale, r_scale: float,
                  options: NewtonOptions = NewtonOptions()) -> tuple[np.ndarray, int]:
     """Solve R(x, lam) = 0 at fixed lam.  Returns (x, iterations); raises ConvergenceError."""
     g = _scaled(fun, x_scale, 1.0, r_scale)
-    y = x0 / x_scale
-    res = np.inf
-    for it in range(1, options.max_iter + 1):
+
+    def F(y):
         R, J, _ = g(y, lam)
-        res = float(np.max(np.abs(R)))
-        if not np.isfinite(res):
-            break
-        if res <= options.tol:
-            return y * x_scale, it - 1
-        dy = _solve(J, -R)
-        y = y + dy
-        if np.max(np.abs(dy)) <= options.step_tol:
-            R, _, _ = g(y, lam)
-            if np.max(np.abs(R)) <= 100 * options.tol:
-                return y * x_scale, it
-    raise ConvergenceError(
-        f"Newton did not converge at lam = {lam:.9g} after {options.max_iter} iterations: "
-        f"last scaled residual max|R|/r_scale = {res:.3e} (tol {options.tol:.1e})",
-        iterations=options.max_iter, residual=res, lam=lam)
+        return R, J
+
+    y, it, _ = _damped_newton(F, x0 / x_scale, options, "Newton", lambda z: lam)
+    return y * x_scale, it
 
 
 @dataclass
@@ -121,31 +162,19 @@ class ContinuationPoint:
     iterations: int
     ds: float
     extra: object = None
+    residual: float = 0.0  # achieved max|R|/r_scale
 
 
-def _corrector(g, y_p, mu_p, t, opts: NewtonOptions):
+def _corrector(g, y_p, mu_p, t, opts: NewtonOptions, lam_scale: float = 1.0):
     """Newton on [R(y, mu); t.(z - z_p)] = 0.  Returns (y, mu, iterations) or raises."""
-    y, mu = y_p.copy(), mu_p
     z_p = np.append(y_p, mu_p)
-    res = np.inf
-    for it in range(1, opts.max_iter + 1):
-        R, J, dl = g(y, mu)
-        res = float(np.max(np.abs(R)))
-        if not np.isfinite(res):
-            break
-        if res <= opts.tol:
-            return y, mu, it - 1
-        h = float(t @ (np.append(y, mu) - z_p))
-        dz = _solve(_bordered(J, dl, t), -np.append(R, h))
-        if not np.all(np.isfinite(dz)):
-            break
-        y, mu = y + dz[:-1], mu + dz[-1]
-        if np.max(np.abs(dz)) <= opts.step_tol:
-            R, _, _ = g(y, mu)
-            if np.max(np.abs(R)) <= 100 * opts.tol:
-                return y, mu, it
-    raise ConvergenceError(f"corrector did not converge (max|R| = {res:.3e})", iterations=opts.max_iter,
-                           residual=res, lam=mu)
+
+    def F(z):
+        R, J, dl = g(z[:-1], z[-1])
+        return np.append(R, t @ (z - z_p)), _bordered(J, dl, t)
+
+    z, it, res = _damped_newton(F, z_p.copy(), opts, "corrector", lambda z: z[-1] * lam_scale)
+    return z[:-1], z[-1], it, res
 
 
 def _tangent(J, dl, t_prev):
@@ -189,7 +218,7 @@ def continue_branch(fun: Callable, x0: np.ndarray, lam0: float, lam_end: float, 
         z_p = np.append(y, mu) + ds * t
         failure = None
         try:
-            y_new, mu_new, it = _corrector(g, z_p[:-1], z_p[-1], t, opts.newton)
+            y_new, mu_new, it, res = _corrector(g, z_p[:-1], z_p[-1], t, opts.newton, lam_scale)
             R, J, dl = g(y_new, mu_new)
             t_new = _tangent(J, dl, t)
             # A true corner of the branch (slip onset on a sampled period is one) turns the
@@ -208,7 +237,8 @@ def continue_branch(fun: Callable, x0: np.ndarray, lam0: float, lam_end: float, 
             continue
         y, mu, t = y_new, mu_new, t_new
         x = y * x_scale
-        points.append(ContinuationPoint(x, mu * lam_scale, it, ds, extra(x, mu * lam_scale) if extra else None))
+        points.append(ContinuationPoint(x, mu * lam_scale, it, ds, extra(x, mu * lam_scale) if extra else None,
+                                        residual=res))
         if callback:
             callback(points[-1])
         if it <= opts.target_iter:
