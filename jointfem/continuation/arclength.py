@@ -40,7 +40,7 @@ class ContinuationError(RuntimeError):
 class NewtonOptions:
     tol: float = 1e-10  # on max|R| / r_scale
     max_iter: int = 40
-    kink_tol: float = 1e-5  # a root on a kink of the sampled law is accepted below this (see _damped_newton);
+    kink_tol: float = 1e-8  # a root on a kink of the sampled law is accepted below this (see _damped_newton);
     # the AFT sampling error of a nonsmooth law is O(N^-2), about 1e-5 relative at N = 256, so
     # demanding less of a stalled Newton would not make the answer more accurate
     stall_iter: int = 8
@@ -58,6 +58,7 @@ class ContinuationOptions:
     max_points: int = 5000
     max_turn_deg: float = 45.0
     turn_ds_floor: float = 1e-4  # steps shorter than this are not refused for turning
+    target_turn_deg: float = 8.0  # the step shrinks when the tangent turns more than this
     newton: NewtonOptions = field(default_factory=NewtonOptions)
 
 
@@ -235,12 +236,18 @@ def continue_branch(fun: Callable, x0: np.ndarray, lam0: float, lam_end: float, 
                     f"continuation step fell below ds_min = {opts.ds_min:.1e} at lam = {mu * lam_scale:.9g} "
                     f"after {len(points)} points; last failure: {failure}")
             continue
+        t_prev = t
         y, mu, t = y_new, mu_new, t_new
         x = y * x_scale
         points.append(ContinuationPoint(x, mu * lam_scale, it, ds, extra(x, mu * lam_scale) if extra else None,
                                         residual=res))
         if callback:
             callback(points[-1])
-        if it <= opts.target_iter:
+        # Step control: grow after easy corrections, but keep the tangent turning at most
+        # ``target_turn_deg`` per step so that peaks and folds are resolved, not stepped over.
+        turn = float(np.rad2deg(np.arccos(np.clip(t_prev @ t, -1.0, 1.0))))
+        if turn > opts.target_turn_deg:
+            ds = max(ds * max(opts.target_turn_deg / turn, 0.25), opts.ds_min)
+        elif it <= opts.target_iter:
             ds = min(ds * opts.grow, opts.ds_max)
     return points

@@ -1,0 +1,140 @@
+"""Jenkins contact law and its AFT: closed forms, invariants, exact Jacobian (FD), reference twin."""
+import numpy as np
+import pytest
+
+from jointfem.contact.jenkins import (SEPARATED, SLIP, STICK, JenkinsPairs, compute_aft, compute_dissipation)
+from jointfem.hbm.harmonics import Harmonics
+from reference_jenkins import compute_aft_reference
+
+
+def _one(kt=1.0, Fs=1.0):
+    return JenkinsPairs(kt=[kt], kn=[0.0], mu=[1.0], N0=[Fs])
+
+
+def _cos_gap(h, a):
+    G = np.zeros((h.num_hc, 1, 1))
+    G[h.block_cos(1), 0, 0] = a
+    return G
+
+
+@pytest.mark.parametrize("a", [1.2, 3.0, 10.0])
+def test_describing_function_and_dissipation(a):
+    """x = a cos(tau): c1 = (kt a/pi)(beta - sin(2 beta)/2), s1 = -(4 Fs/pi)(1 - Fs/(kt a)),
+    W = 4 Fs (a - Fs/kt).  The sampled force is exact at the samples (reversals fall on samples
+    for even N), so the only error is the aliasing of a kinked periodic force, O(N^-2):
+    N = 4096 gives about 1e-7."""
+    kt, Fs = 2.0, 1.5
+    a = a * Fs / kt
+    h = Harmonics(3, 4096)
+    r = compute_aft(_one(kt, Fs), _cos_gap(h, a), h)
+    beta = np.arccos(1 - 2 * Fs / (kt * a))
+    c1 = kt * a / np.pi * (beta - np.sin(2 * beta) / 2)
+    s1 = -4 * Fs / np.pi * (1 - Fs / (kt * a))
+    assert r.F[h.block_cos(1), 0, 0] == pytest.approx(c1, rel=1e-6)
+    assert r.F[h.block_sin(1), 0, 0] == pytest.approx(s1, rel=1e-6)
+    W = compute_dissipation(r.f_t, r.g_t)[0]
+    assert W == pytest.approx(4 * Fs * (a - Fs / kt), rel=1e-6)
+    # Corners of the loop: the force never exceeds Fs and reaches it.
+    assert np.abs(r.f_t).max() == pytest.approx(Fs, rel=1e-12)
+
+
+def test_below_slip_is_exactly_linear():
+    kt, Fs = 2.0, 1.5
+    h = Harmonics(5, 64)
+    a = 0.999 * Fs / kt
+    r = compute_aft(_one(kt, Fs), _cos_gap(h, a), h)
+    expected = np.zeros(h.num_hc)
+    expected[h.block_cos(1)] = kt * a
+    np.testing.assert_allclose(r.F[:, 0, 0], expected, rtol=0, atol=1e-14 * kt * a)
+    assert (r.state_t == STICK).all()
+    J = r.J[0, :, 0, :, 0]
+    np.testing.assert_allclose(J, kt * np.eye(h.num_hc), atol=1e-12 * kt)
+
+
+def test_2d_gross_slip_circle_has_constant_force_magnitude():
+    """g_t on a large circle: the slider trails, |f_t| = mu N at every sample (radial return)."""
+    h = Harmonics(2, 256)
+    p = JenkinsPairs(kt=[3.0], kn=[0.0], mu=[0.4], N0=[2.0], num_tangential=2)
+    G = np.zeros((h.num_hc, 1, 2))
+    G[h.block_cos(1), 0, 0] = 5.0
+    G[h.block_sin(1), 0, 1] = 5.0
+    r = compute_aft(p, G, h)
+    mag = np.linalg.norm(r.f_t[:, 0, :], axis=1)
+    np.testing.assert_allclose(mag, 0.8, rtol=1e-10)
+    assert (r.state_t == SLIP).all()
+    # Energy per cycle: force of magnitude mu N along a circle of radius R - mu N/kt trailing the gap.
+    W = compute_dissipation(r.f_t, r.g_t)[0]
+    assert W > 0
+
+
+def test_separation_zeroes_every_force():
+    h = Harmonics(1, 64)
+    p = JenkinsPairs(kt=[1.0], kn=[10.0], mu=[0.5], N0=[1.0], num_tangential=2, has_normal=True)
+    G = np.zeros((h.num_hc, 1, 3))
+    G[0, 0, 2] = -0.5  # static opening: N0 + kn g_n = -4 < 0 always
+    G[h.block_cos(1), 0, 0] = 0.3
+    r = compute_aft(p, G, h)
+    assert (r.state_t == SEPARATED).all()
+    assert np.abs(r.f_t).max() == 0.0
+    assert np.abs(r.J).max() == 0.0
+
+
+def _random_case(nt, has_normal, P=7, seed=0, H=3, N=64, amp=0.7):
+    rng = np.random.default_rng(seed)
+    h = Harmonics(H, N)
+    p = JenkinsPairs(kt=rng.uniform(1, 2, P), kn=rng.uniform(1, 3, P), mu=rng.uniform(0.2, 0.6, P),
+                     N0=rng.uniform(0.5, 1.5, P), num_tangential=nt, has_normal=has_normal)
+    G = rng.normal(size=(h.num_hc, P, p.num_comp)) * amp / (1 + h.orders)[:, None, None]
+    return p, G, h
+
+
+def _fd_jacobian(p, G, h, eps=1e-7):
+    J = np.zeros((p.num_pairs, h.num_hc, p.num_comp, h.num_hc, p.num_comp))
+    for k in range(h.num_hc):
+        for b in range(p.num_comp):
+            Gp, Gm = G.copy(), G.copy()
+            Gp[k, :, b] += eps
+            Gm[k, :, b] -= eps
+            dF = (compute_aft(p, Gp, h, jacobian=False).F - compute_aft(p, Gm, h, jacobian=False).F) / (2 * eps)
+            J[:, :, :, k, b] = np.moveaxis(dF, 1, 0)
+    return J
+
+
+@pytest.mark.parametrize("nt,has_normal", [(1, False), (1, True), (2, False), (2, True)])
+@pytest.mark.parametrize("amp", [0.25, 0.7])
+def test_jacobian_matches_finite_differences(nt, has_normal, amp):
+    """Central differences, eps = 1e-7: truncation ~eps^2 and round-off ~1e-16/eps, so 1e-6
+    relative to the largest entry is a safe bound away from a sample switching state."""
+    p, G, h = _random_case(nt, has_normal, amp=amp)
+    r = compute_aft(p, G, h)
+    states = np.bincount(r.state_t.ravel(), minlength=3)
+    assert states[SLIP] > 0  # the case exercises slip
+    if has_normal and amp > 0.5:
+        assert states[SEPARATED] > 0
+    J_fd = _fd_jacobian(p, G, h)
+    assert np.abs(r.J - J_fd).max() <= 1e-6 * np.abs(J_fd).max()
+
+
+def test_shakedown_pair_jacobian():
+    """A pair that slips in its first period and then sticks for good: its slider position, and
+    so its force, depends on the gap through the transient (caught at a beam point by FD)."""
+    h = Harmonics(2, 128)
+    p = JenkinsPairs(kt=[1.0], kn=[4.0], mu=[0.3], N0=[1.0], num_tangential=1, has_normal=True)
+    G = np.zeros((h.num_hc, 1, 2))
+    G[0, 0, 0] = 0.6  # static tangential offset: slips once from w = 0 ...
+    G[h.block_cos(1), 0, 0] = 0.05  # ... then the small oscillation fits inside the cone
+    G[h.block_cos(1), 0, 1] = 0.02
+    r = compute_aft(p, G, h)
+    assert (r.state_t == STICK).all() and abs(r.w_start[0, 0]) > 0
+    J_fd = _fd_jacobian(p, G, h)
+    assert np.abs(r.J - J_fd).max() <= 1e-6 * np.abs(J_fd).max()
+
+
+@pytest.mark.parametrize("nt,has_normal", [(1, False), (1, True), (2, False), (2, True)])
+def test_compiled_kernel_matches_numpy_reference(nt, has_normal):
+    p, G, h = _random_case(nt, has_normal, P=9, seed=3, H=4, N=96)
+    r = compute_aft(p, G, h)
+    ref = compute_aft_reference(p, G, h)
+    np.testing.assert_allclose(r.F, ref.F, atol=1e-13 * np.abs(ref.F).max())
+    np.testing.assert_array_equal(r.state_t, ref.state_t)
+    assert np.abs(r.J - ref.J).max() <= 1e-11 * np.abs(ref.J).max()
