@@ -1,0 +1,100 @@
+"""Scene files: every class of bad input gives one clear line naming file, key and value,
+before any computation, and the CLI writes nothing."""
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from jointfem.scene import SceneError, create_structure, load_scene
+
+ROOT = Path(__file__).resolve().parents[1]
+SDOF = (ROOT / "demos" / "sdof_jenkins.toml").read_text()
+BEAM = (ROOT / "demos" / "beam2d.toml").read_text()
+
+
+def _write(tmp_path, text, name="bad.toml"):
+    p = tmp_path / name
+    p.write_text(text)
+    return p
+
+
+# (scene text, key in the message, value in the message)
+BAD = {
+    "unknown key": (SDOF.replace("harmonics = 7", "harmonics = 7\nharmonix = 3"), "[solver].harmonix"
+                    if False else "solver.harmonix", "3"),
+    "missing key": (SDOF.replace("m = 1.0\n", ""), "mass[0].m", "None"),
+    "mass <= 0": (SDOF.replace("m = 1.0", "m = 0.0"), "mass[0].m", "0.0"),
+    "stiffness <= 0": (SDOF.replace("k = 1.0", "k = -2.0"), "spring[0].k", "-2.0"),
+    "kt <= 0": (SDOF.replace("kt = 1.0", "kt = 0"), "jenkins[0].kt", "0"),
+    "mu < 0": (SDOF.replace("mu = 1.0", "mu = -0.1"), "jenkins[0].mu", "-0.1"),
+    "N0 < 0": (SDOF.replace("N0 = 1.0", "N0 = -1.0"), "jenkins[0].N0", "-1.0"),
+    "empty range": (SDOF.replace("[0.5, 2.0]", "[1.0, 1.0]"), "solver.omega_range", "[1.0, 1.0]"),
+    "reversed range": (SDOF.replace("[0.5, 2.0]", "[2.0, 0.5]"), "solver.omega_range", "[2.0, 0.5]"),
+    "harmonics < 1": (SDOF.replace("harmonics = 7", "harmonics = 0"), "solver.harmonics", "0"),
+    "samples < 2H+1": (SDOF.replace("samples = 256", "samples = 14"), "solver.samples", "14"),
+    "output dof": (SDOF.replace('dofs = ["m.x"]', 'dofs = ["m.y"]'), "output.dofs", "m.y"),
+    "force dof": (SDOF.replace('dof = "m.x"', 'dof = "q.x"'), "force[0].dof", "q.x"),
+    "wrong type": (SDOF.replace("c = 0.02", 'c = "soft"'), "damper[0].c", "soft"),
+    "beam mu < 0": (BEAM.replace("mu = 0.3", "mu = -0.3"), "joint.mu", "-0.3"),
+    "beam N0 < 0": (BEAM.replace("N0 = 20.0", "N0 = -5.0"), "joint.N0", "-5.0"),
+    "beam output": (BEAM.replace('"b2.mid.uy"]', '"b3.mid.uy"]'), "output.dofs", "b3.mid.uy"),
+    "beam odd elements": (BEAM.replace("elements = 20", "elements = 21"), "beam.elements", "21"),
+    "unknown kind": (SDOF.replace('kind = "lumped"', 'kind = "shell"'), "kind", "shell"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD))
+def test_bad_scene_is_one_clear_line(tmp_path, case):
+    text, key, value = BAD[case]
+    path = _write(tmp_path, text)
+    with pytest.raises(SceneError) as err:
+        load_scene(path)
+    msg = str(err.value)
+    assert "\n" not in msg
+    assert str(path) in msg and key in msg and value in msg, msg
+
+
+def test_toml_syntax_and_missing_file(tmp_path):
+    with pytest.raises(SceneError, match="not valid TOML"):
+        load_scene(_write(tmp_path, "kind = lumped ="))
+    with pytest.raises(SceneError, match="cannot be read"):
+        load_scene(tmp_path / "nope.toml")
+
+
+def test_cli_bad_scene_exits_2_and_writes_nothing(tmp_path):
+    path = _write(tmp_path, BAD["mu < 0"][0])
+    out = tmp_path / "out"
+    r = subprocess.run([sys.executable, "-m", "jointfem", "frf", str(path), "--out", str(out)],
+                       capture_output=True, text=True)
+    assert r.returncode == 2
+    lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
+    assert len(lines) == 1 and "jointfem: error:" in lines[0] and "jenkins[0].mu" in lines[0]
+    assert "Traceback" not in r.stderr
+    assert not out.exists()
+    r = subprocess.run([sys.executable, "-m", "jointfem", "frf", str(ROOT / "demos" / "sdof_jenkins.toml"),
+                        "--samples", "10", "--out", str(out)], capture_output=True, text=True)
+    assert r.returncode == 2 and "samples" in r.stderr and "Traceback" not in r.stderr
+    assert not out.exists()
+
+
+def test_lumped_scene_never_imports_dolfinx(tmp_path):
+    code = (
+        "import sys, jointfem\n"
+        "from jointfem.scene import load_scene, create_structure\n"
+        f"s = create_structure(load_scene({str(ROOT / 'demos' / 'sdof_jenkins.toml')!r}))\n"
+        "from jointfem.frf import compute_frf, SweepOptions\n"
+        "from jointfem.hbm.harmonics import Harmonics\n"
+        "compute_frf(s, SweepOptions(1.2, 1.3, Harmonics(2, 32)))\n"
+        "bad = [m for m in ('dolfinx', 'petsc4py', 'slepc4py', 'gmsh', 'mpi4py') if m in sys.modules]\n"
+        "assert not bad, bad\n")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+
+
+def test_beam_scene_defaults_and_build():
+    scene = load_scene(ROOT / "demos" / "beam2d.toml")
+    s = create_structure(scene)
+    assert s.num_dofs == 2 * 21 * 3 - 6  # two beams of 20 elements, one clamped node each
+    assert s.num_pairs == 3
+    assert set(s.outputs) == {"b1.mid.uy", "b2.mid.uy"}
