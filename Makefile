@@ -8,7 +8,7 @@ setup:
 	@bash tools/setup.sh
 
 demo: setup
-	$(PY) -m jointfem frf demos/beam2d.toml --out results/beam2d --plots
+	$(PY) -m jointfem frf demos/beam2d.toml --out results/beam2d
 	$(PY) demos/jointed_beam_levels.py --out results/beam2d_levels
 
 test: setup

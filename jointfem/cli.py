@@ -104,7 +104,6 @@ def build_parser() -> argparse.ArgumentParser:
     f.add_argument("--harmonics", type=int, help="number of harmonics H (overrides the scene)")
     f.add_argument("--samples", type=int, help="AFT time samples N >= 2H+1 (overrides the scene)")
     f.add_argument("--method", choices=METHODS, default="full", help="model reduction (only full order so far)")
-    f.add_argument("--plots", action="store_true", help="also write the plots (frf.png is always written)")
     f.add_argument("--quiet", action="store_true", help="no progress bar or summary")
     f.set_defaults(func=cmd_frf)
     return p
