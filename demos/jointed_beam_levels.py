@@ -73,7 +73,7 @@ def run(out: Path, *, coarse: bool = False, progress: bool = True) -> dict:
             "max_rel_diff_to_stuck_linear": float(np.max(np.abs(frf.amplitude(dof) - lin) / lin)),
             "wall_s": frf.info["time_online_s"],
         }
-        curves.append((f"{label}, F = {force} N", dataclasses.replace(frf, U=frf.U / force)))
+        curves.append((f"{label}, F = {force:.3f} N", dataclasses.replace(frf, U=frf.U / force)))
     plot_levels(curves, "b1.mid.uy", out / "levels.png", title="jointed beam, full order, 2nd bending mode")
     (out / "levels.json").write_text(json.dumps(report, indent=2))
     # The demo checks itself.
