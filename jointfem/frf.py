@@ -78,5 +78,8 @@ def compute_frf(structure: Structure, options: SweepOptions, *,
         states=np.array([p.extra for p in points], dtype=np.int8),
         harmonics=h, num_dofs=n, outputs=dict(structure.outputs), dof_names=structure.dof_names,
         pair_names=pair_names,
-        info={"time_setup_s": t_setup, "time_online_s": t_online, "num_unknowns": hbm.num_unknowns},
+        info={"time_setup_s": t_setup, "time_online_s": t_online, "num_unknowns": hbm.num_unknowns,
+              # achieved max|R| / max|F| per point: below the Newton tol, or below kink_tol where a
+              # root on a kink of the sampled law stalled Newton (docs/theory.md)
+              "arrays": {"residual": np.array([p.residual for p in points])}},
     )

@@ -29,6 +29,8 @@ def test_frf_writes_csv_npz_json_png(tmp_path):
     assert b["U"].shape == (data.shape[0], 11) and int(b["H"]) == 5 and int(b["N"]) == 128
     assert b["states"].shape == (data.shape[0], 128, 1)
     assert set(np.unique(b["states"])) <= {0, 1, 2} and (b["states"] == 1).any()
+    # every point's achieved residual is recorded, and none is above the kink tolerance
+    assert b["residual"].shape == (data.shape[0],) and b["residual"].max() <= 1e-8
     s = json.loads((out / "summary.json").read_text())
     for key in ("scene", "method", "model", "rom", "num_points", "newton_iterations_total", "wall_s", "peaks"):
         assert key in s

@@ -242,7 +242,6 @@ def _pair(p, g_t, ktp, knp, mup, N0p, nt, has_normal, gamma, cum_gamma_inv, trig
     Dh = np.zeros((2, nk, m, m))  # sum_i cos/sin(k tau_i) D_i  (direct part, k = 0..2H)
     tmp = np.zeros((nt, nq))
     stick_from = -1  # first sample of the current stick run, -1 if not sticking
-    moved = False
     for i in range(N + 1):
         if i < N:
             gt1 = g[i, 1] if nt == 2 else 0.0
@@ -267,8 +266,6 @@ def _pair(p, g_t, ktp, knp, mup, N0p, nt, has_normal, gamma, cum_gamma_inv, trig
                 cross_prev = 0.5 * knp * pb_b
             if has_normal:
                 f_t[i, p, nt] = fn
-            if s != STICK:
-                moved = True
             w0, w1 = w0n, w1n
         else:
             s = -1  # end of period: flush a pending stick run

@@ -201,10 +201,11 @@ def continue_branch(fun: Callable, x0: np.ndarray, lam0: float, lam_end: float, 
     direction = np.sign(mu_end - mu)
     if direction == 0:
         raise ValueError("lam_end equals lam0: nothing to continue")
-    points = [ContinuationPoint(x, lam0, it0, 0.0, extra(x, lam0) if extra else None)]
+    R, J, dl = g(y, mu)
+    points = [ContinuationPoint(x, lam0, it0, 0.0, extra(x, lam0) if extra else None,
+                                residual=float(np.max(np.abs(R))))]
     if callback:
         callback(points[-1])
-    R, J, dl = g(y, mu)
     e_lam = np.zeros(y.size + 1)
     e_lam[-1] = direction
     t = _tangent(J, dl, e_lam)
