@@ -21,8 +21,7 @@ def _write(tmp_path, text, name="bad.toml"):
 
 # (scene text, key in the message, value in the message)
 BAD = {
-    "unknown key": (SDOF.replace("harmonics = 7", "harmonics = 7\nharmonix = 3"), "[solver].harmonix"
-                    if False else "solver.harmonix", "3"),
+    "unknown key": (SDOF.replace("harmonics = 7", "harmonics = 7\nharmonix = 3"), "solver.harmonix", "3"),
     "missing key": (SDOF.replace("m = 1.0\n", ""), "mass[0].m", "None"),
     "mass <= 0": (SDOF.replace("m = 1.0", "m = 0.0"), "mass[0].m", "0.0"),
     "stiffness <= 0": (SDOF.replace("k = 1.0", "k = -2.0"), "spring[0].k", "-2.0"),
