@@ -36,6 +36,7 @@ def _march(pairs: JenkinsPairs, g_t: np.ndarray, w_start: np.ndarray, *, gamma: 
     tangent = gamma is not None
     f_t = np.zeros_like(g_t)
     state_t = np.empty((N_t, P), dtype=np.int8)
+    prev_sep = (pairs.N0 + pairs.kn * g_t[-1, :, nt] <= 0) if pairs.has_normal else np.zeros(P, bool)
     w = w_start.copy()
     eye_nt = np.eye(nt)
     if tangent:
@@ -58,6 +59,26 @@ def _march(pairs: JenkinsPairs, g_t: np.ndarray, w_start: np.ndarray, *, gamma: 
         else:
             N = pairs.N0
         sep = N <= 0.0
+        if pairs.has_normal:
+            # re-contact: the slider starts where N crosses zero between the samples
+            rec = prev_sep & ~sep
+            if rec.any():
+                ip = (i - 1) % N_t
+                n_p = pairs.N0 + pairs.kn * g_t[ip, :, nt]
+                th = np.where(rec, -n_p / np.where(rec, N - n_p, 1.0), 0.0)
+                gp = g_t[ip, :, :nt]
+                w = np.where(rec[:, None], gp + th[:, None] * (gt - gp), w)
+                if tangent:
+                    for p_ in np.flatnonzero(rec):
+                        row = lambda j, c: np.kron(gamma[j % N_t], np.eye(m)[c])  # noqa: E731
+                        dw = np.zeros((nt, nq))
+                        den = (N[p_] - n_p[p_]) ** 2
+                        for a in range(nt):
+                            dw[a, :q] = ((1 - th[p_]) * row(ip, a) + th[p_] * row(i, a)
+                                         + (gt[p_, a] - gp[p_, a]) * pairs.kn[p_]
+                                         * (-N[p_] * row(ip, nt) + n_p[p_] * row(i, nt)) / den)
+                        dW[p_] = dw
+            prev_sep = sep
         trial = kt * (gt - w)
         tnorm = np.sqrt(np.einsum("pa,pa->p", trial, trial))
         limit = mu * np.where(sep, 0.0, N)

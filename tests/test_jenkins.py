@@ -138,3 +138,26 @@ def test_compiled_kernel_matches_numpy_reference(nt, has_normal):
     np.testing.assert_allclose(r.F, ref.F, atol=1e-13 * np.abs(ref.F).max())
     np.testing.assert_array_equal(r.state_t, ref.state_t)
     assert np.abs(r.J - ref.J).max() <= 1e-11 * np.abs(ref.J).max()
+
+
+def test_recontact_choice_depends_on_rates_not_on_the_first_contact_load():
+    """After a separation the slider restarts where N crosses zero between two samples, so at the
+    first contact sample kt (g_t - w) / (mu N) = kt g_t' / (mu N') whatever the size of that first
+    load.  Moving the crossing through one sample interval (by N0) must not flip the state there;
+    with the slider at the last separated sample it did, and stalled the beam's continuation."""
+    h = Harmonics(3, 64)
+    dtau = 2 * np.pi / h.N
+    states = []
+    for shift in np.linspace(0.05, 0.95, 19):
+        # g_n = -cos(tau) - c: N = N0 + kn g_n crosses zero at tau_c; choose N0 so that the
+        # crossing sits a fraction `shift` into the interval before sample 10.
+        tau_c = (10 - shift) * dtau
+        N0 = 1.0 * np.cos(tau_c)
+        p = JenkinsPairs(kt=[1.0], kn=[1.0], mu=[0.3], N0=[N0], num_tangential=1, has_normal=True)
+        G = np.zeros((h.num_hc, 1, 2))
+        G[h.block_cos(1), 0, 1] = -1.0  # N = N0 - cos(tau): open around tau = 0
+        G[h.block_sin(1), 0, 0] = 0.2  # tangential motion through the re-contact
+        r = compute_aft(p, G, h)
+        assert r.state_t[9, 0] == SEPARATED and r.state_t[10, 0] != SEPARATED
+        states.append(int(r.state_t[10, 0]))
+    assert len(set(states)) == 1, states

@@ -59,6 +59,44 @@ def _phi(a, b):
     return a * a / d, a * (a - 2.0 * b) / (d * d), a * a / (d * d)
 
 
+@njit(cache=True, inline="always")
+def _recontact(g, i, kn, N0, nt):
+    """Slider position where the normal load of a separated sample i-1 crosses zero before the
+    contact sample i (linear interpolation): the tangential spring re-engages unloaded there.
+
+    Returns (theta, w0, w1, Nprev, Ncur) with w = g_t(i-1) + theta (g_t(i) - g_t(i-1)) and
+    theta = -N(i-1) / (N(i) - N(i-1)) in [0, 1).  Taking the crossing instead of the last
+    separated sample makes the stick/slip choice after re-contact depend on the rates of g_t and N
+    (slip if kt |g_t'| > mu N'), not on the size of the first contact load, so that it no longer
+    flips with tiny changes of N.
+    """
+    N = g.shape[0]
+    ip = (i - 1) % N
+    n_p = N0 + kn * g[ip, nt]
+    n_c = N0 + kn * g[i, nt]
+    theta = -n_p / (n_c - n_p)
+    w0 = g[ip, 0] + theta * (g[i, 0] - g[ip, 0])
+    w1 = (g[ip, 1] + theta * (g[i, 1] - g[ip, 1])) if nt == 2 else 0.0
+    return theta, w0, w1, n_p, n_c
+
+
+@njit(cache=True, inline="always")
+def _recontact_dW(g, i, gamma, dW, theta, n_p, n_c, kn, m, nt):
+    """dW <- d w_recontact: (1 - theta) dg_t(i-1) + theta dg_t(i) + (g_t(i) - g_t(i-1)) dtheta,
+    dtheta = kn (-N(i) dg_n(i-1) + N(i-1) dg_n(i)) / (N(i) - N(i-1))^2."""
+    N = g.shape[0]
+    ip = (i - 1) % N
+    nhc = gamma.shape[1]
+    den = (n_c - n_p) * (n_c - n_p)
+    for a in range(nt):
+        dg = g[i, a] - g[ip, a]
+        for k in range(dW.shape[1]):
+            dW[a, k] = 0.0
+        for hh in range(nhc):
+            dW[a, hh * m + a] = (1.0 - theta) * gamma[ip, hh] + theta * gamma[i, hh]
+            dW[a, hh * m + nt] = dg * kn * (-n_c * gamma[ip, hh] + n_p * gamma[i, hh]) / den
+
+
 @njit(cache=True)
 def _period(g, kt, kn, mu, N0, nt, has_normal, w0, w1, T):
     """March one period without forces; T (2x2) <- dw_end/dw_start.  Returns (w0, w1, moved)."""
@@ -68,10 +106,14 @@ def _period(g, kt, kn, mu, N0, nt, has_normal, w0, w1, T):
     T[1, 0] = 0.0
     T[1, 1] = 1.0
     moved = False
+    prev_sep = has_normal and N0 + kn * g[N - 1, nt] <= 0.0
     for i in range(N):
         gt1 = g[i, 1] if nt == 2 else 0.0
         gn = g[i, nt] if has_normal else 0.0
+        if prev_sep and N0 + kn * gn > 0.0:
+            theta, w0, w1, n_p, n_c = _recontact(g, i, kn, N0, nt)
         s, f0, f1, fn, w0, w1, r, e0, e1 = _law(g[i, 0], gt1, gn, w0, w1, kt, kn, mu, N0, nt, has_normal)
+        prev_sep = s == SEPARATED
         if s == SEPARATED:
             moved = True
             T[:, :] = 0.0
@@ -138,11 +180,16 @@ def _transient_tangent(g, kt, kn, mu, N0, nt, has_normal, gamma, num_periods, q)
     dW = np.zeros((nt, q))
     tmp = np.zeros((nt, q))
     w0, w1 = 0.0, 0.0
+    prev_sep = has_normal and N0 + kn * g[N - 1, nt] <= 0.0
     for _ in range(num_periods):
         for i in range(N):
             gt1 = g[i, 1] if nt == 2 else 0.0
             gn = g[i, nt] if has_normal else 0.0
+            if prev_sep and N0 + kn * gn > 0.0:
+                theta, w0, w1, n_p, n_c = _recontact(g, i, kn, N0, nt)
+                _recontact_dW(g, i, gamma, dW, theta, n_p, n_c, kn, m, nt)
             s, f0, f1, fn, w0, w1, r, e0, e1 = _law(g[i, 0], gt1, gn, w0, w1, kt, kn, mu, N0, nt, has_normal)
+            prev_sep = s == SEPARATED
             if s == SLIP:
                 _project(e0, e1, dW, tmp, nt)
             if s != STICK:
@@ -242,11 +289,17 @@ def _pair(p, g_t, ktp, knp, mup, N0p, nt, has_normal, gamma, cum_gamma_inv, trig
     Dh = np.zeros((2, nk, m, m))  # sum_i cos/sin(k tau_i) D_i  (direct part, k = 0..2H)
     tmp = np.zeros((nt, nq))
     stick_from = -1  # first sample of the current stick run, -1 if not sticking
+    prev_sep = has_normal and N0p + knp * g[N - 1, nt] <= 0.0
     for i in range(N + 1):
         if i < N:
             gt1 = g[i, 1] if nt == 2 else 0.0
             gn = g[i, nt] if has_normal else 0.0
+            if prev_sep and N0p + knp * gn > 0.0:  # re-contact: the slider starts at the crossing
+                theta, w0, w1, n_p, n_c = _recontact(g, i, knp, N0p, nt)
+                if want_jac:
+                    _recontact_dW(g, i, gamma, dW, theta, n_p, n_c, knp, m, nt)
             s, f0, f1, fn, w0n, w1n, r, e0, e1 = _law(g[i, 0], gt1, gn, w0, w1, ktp, knp, mup, N0p, nt, has_normal)
+            prev_sep = s == SEPARATED
             state_t[i, p] = s
             f_t[i, p, 0] = f0
             if nt == 2:
