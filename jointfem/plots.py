@@ -38,11 +38,12 @@ def plot_frf(frf: FrequencyResponse, path: Path, *, title: str = "") -> Path:
     if has_contact:
         fr = frf.state_fractions().mean(axis=1)  # (points, 3)
         ax2 = axes[1, 0]
-        ax2.stackplot(f_hz, fr.T, labels=["stick", "slip", "separated"],
-                      colors=["#4c9a2a", "#f0a30a", "#c8102e"], alpha=0.85)
-        ax2.set_ylim(0, 1)
+        # lines, not a stack: a branch that folds back in frequency must stay readable
+        for k, (name, color) in enumerate((("stick", "#4c9a2a"), ("slip", "#f0a30a"), ("separated", "#c8102e"))):
+            ax2.plot(f_hz, fr[:, k], color=color, label=name)
+        ax2.set_ylim(-0.02, 1.02)
         ax2.set_ylabel("share of\npair-time")
-        ax2.legend(fontsize=7, loc="upper right", ncol=3)
+        ax2.legend(fontsize=7, loc="center left", ncol=3)
     axes[-1, 0].set_xlabel("frequency [Hz]")
     fig.tight_layout()
     path = Path(path)
