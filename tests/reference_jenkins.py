@@ -147,8 +147,8 @@ def _march(pairs: JenkinsPairs, g_t: np.ndarray, w_start: np.ndarray, *, gamma: 
     return f_t, state_t, w, (T if need_T else None)
 
 
-def compute_steady_slider(pairs: JenkinsPairs, g_t: np.ndarray, *, rtol: float = 1e-12, max_iter: int = 50,
-                          num_plain: int = 8):
+def compute_steady_slider(pairs: JenkinsPairs, g_t: np.ndarray, *, rtol: float = 1e-10, max_iter: int = 50,
+                          num_plain: int = 2):
     """Steady slider state at tau = 0, marched from w = 0, pair by pair.
 
     Returns (w_start (P, nt), kind (P,), num_transient (P,)) with the kinds of the kernel:
@@ -164,25 +164,34 @@ def compute_steady_slider(pairs: JenkinsPairs, g_t: np.ndarray, *, rtol: float =
         g = g_t[:, p:p + 1]
         scale = max(pairs.mu[p] * abs(pairs.N0[p]) / pairs.kt[p], np.abs(g[:, :, :nt]).max())
         scale = scale if scale > 0 else 1.0
-        w = np.zeros((1, nt))
-        for it in range(max_iter):
-            _, state_t, w_end, T = _march(one, g, w, need_T=True)
-            if not (state_t != STICK).any():
-                kind[p], ntr[p] = (0 if it == 0 else 2), it
-                break
-            r = w_end - w
-            if np.abs(r).max() / scale <= rtol:
-                kind[p], ntr[p] = 1, it
-                break
-            if it < num_plain:
-                w = w_end
-            else:
-                A = np.eye(nt) - T[0]
-                w = w + (np.linalg.solve(A, r[0]) if abs(np.linalg.det(A)) > 1e-12 else r[0])
-        else:
-            raise ContactError(f"slider steady state not reached for pair {p}")
+        try:
+            w, kind[p], ntr[p], newton = _search(one, g, nt, scale, rtol, max_iter, num_plain)
+        except ContactError:
+            newton = kind[p] = None
+        if kind[p] is None or (kind[p] == 2 and newton):  # follow the plain path instead
+            w, kind[p], ntr[p], _ = _search(one, g, nt, scale, rtol, 8 * max_iter, 8 * max_iter)
         w_out[p] = w[0]
     return w_out, kind, ntr
+
+
+def _search(one, g, nt, scale, rtol, max_iter, num_plain):
+    """One search from w = 0 (twin of _kernels._steady_search): (w, kind, num_transient, newton)."""
+    newton = False
+    w = np.zeros((1, nt))
+    for it in range(max_iter):
+        _, state_t, w_end, T = _march(one, g, w, need_T=True)
+        if not (state_t != STICK).any():
+            return w, (0 if it == 0 else 2), it, newton
+        r = w_end - w
+        if np.abs(r).max() / scale <= rtol:
+            return w, 1, it, newton
+        if it < num_plain:
+            w = w_end
+        else:
+            newton = True
+            A = np.eye(nt) - T[0]
+            w = w + (np.linalg.solve(A, r[0]) if abs(np.linalg.det(A)) > 1e-12 else r[0])
+    raise ContactError("slider steady state not reached")
 
 
 def compute_aft_reference(pairs: JenkinsPairs, G: np.ndarray, harmonics: Harmonics, *, jacobian: bool = True) -> ContactResult:

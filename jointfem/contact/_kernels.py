@@ -198,38 +198,29 @@ def _transient_tangent(g, kt, kn, mu, N0, nt, has_normal, gamma, num_periods, q)
 
 
 @njit(cache=True)
-def _steady(g, kt, kn, mu, N0, nt, has_normal, rtol, max_iter):
-    """Slider state at tau = 0 of the periodic steady state, marched from w = 0.
+def _steady_search(g, kt, kn, mu, N0, nt, has_normal, rtol, max_iter, num_plain, scale):
+    """One search from w = 0: ``num_plain`` plain periods, then Newton on the fixed point.
 
-    Returns (w0, w1, status, last_err, kind, num_transient):
-    kind 0: sticks all period from w = 0 (w* = 0);
-    kind 1: slips or separates in the steady period (w* isolated fixed point of the period map);
-    kind 2: shakedown, slipped for ``num_transient`` periods and then sticks for good;
-    status 1 if not converged.  Plain periods first (exact path, 1D is periodic after one
-    slipping period); Newton on the fixed point if that is slow (2D gross slip).
+    Returns (w0, w1, status, err, kind, num_transient, newton_used).
     """
     T = np.empty((2, 2))
-    scale = mu * abs(N0) / kt
-    for i in range(g.shape[0]):
-        for a in range(nt):
-            scale = max(scale, abs(g[i, a]))
-    if scale <= 0.0:
-        scale = 1.0
     w0, w1 = 0.0, 0.0
     err = np.inf
-    num_plain = 8
+    newton_used = False
     for it in range(max_iter):
         e0, e1, moved = _period(g, kt, kn, mu, N0, nt, has_normal, w0, w1, T)
         if not moved:
-            return w0, w1, 0, 0.0, (0 if it == 0 else 2), it
+            return w0, w1, 0, 0.0, (0 if it == 0 else 2), it, newton_used
         r0 = e0 - w0
         r1 = e1 - w1
         err = max(abs(r0), abs(r1)) / scale
         if err <= rtol:
-            return w0, w1, 0, err, 1, it
+            return w0, w1, 0, err, 1, it, newton_used
         if it < num_plain:
             w0, w1 = e0, e1
-        elif nt == 1:
+            continue
+        newton_used = True
+        if nt == 1:
             den = 1.0 - T[0, 0]
             w0 += r0 / den if abs(den) > 1e-12 else r0
         else:
@@ -241,7 +232,39 @@ def _steady(g, kt, kn, mu, N0, nt, has_normal, rtol, max_iter):
             else:
                 w0 += r0
                 w1 += r1
-    return w0, w1, 1, err, 1, max_iter
+    return w0, w1, 1, err, 1, max_iter, newton_used
+
+
+@njit(cache=True)
+def _steady(g, kt, kn, mu, N0, nt, has_normal, rtol, max_iter):
+    """Slider state at tau = 0 of the periodic steady state, marched from w = 0.
+
+    Returns (w0, w1, status, last_err, kind, num_transient):
+    kind 0: sticks all period from w = 0 (w* = 0);
+    kind 1: slips or separates in the steady period (w* isolated fixed point of the period map,
+            whatever path found it);
+    kind 2: shakedown, slipped for ``num_transient`` plain periods and then sticks for good (w*
+            and its derivative belong to the plain path, which _transient_tangent replays);
+    status 1 if not converged.  Two plain periods (1D is periodic after one slipping period),
+    then Newton on the fixed point (2D partial slip converges slowly otherwise).  If Newton stalls
+    or lands on a shakedown, the search is redone along the plain path (up to 8 max_iter periods),
+    so that kind 2 stays consistent with _transient_tangent.
+    """
+    scale = mu * abs(N0) / kt
+    for i in range(g.shape[0]):
+        for a in range(nt):
+            scale = max(scale, abs(g[i, a]))
+    if scale <= 0.0:
+        scale = 1.0
+    w0, w1, st, err, kind, ntr, newton_used = _steady_search(g, kt, kn, mu, N0, nt, has_normal, rtol, max_iter,
+                                                            2, scale)
+    if st != 0 or (kind == 2 and newton_used):
+        # Newton stalled on a kink of the period map, or landed on a shakedown: follow the plain
+        # path instead (it may converge only geometrically, e.g. ratcheting into a shakedown).
+        n_plain = 8 * max_iter
+        w0, w1, st, err, kind, ntr, newton_used = _steady_search(g, kt, kn, mu, N0, nt, has_normal, rtol,
+                                                                n_plain, n_plain, scale)
+    return w0, w1, st, err, kind, ntr
 
 
 @njit(cache=True, parallel=True)

@@ -131,7 +131,7 @@ def _operators(harmonics: Harmonics):
 
 
 def compute_aft(pairs: JenkinsPairs, G: np.ndarray, harmonics: Harmonics, *, jacobian: bool = True,
-                rtol: float = 1e-12, max_iter: int = 50) -> ContactResult:
+                rtol: float = 1e-10, max_iter: int = 50) -> ContactResult:
     """Alternating frequency-time evaluation of a group of Jenkins pairs.
 
     G: gap coefficients, shape (num_hc, P, m), m.  Returns a ContactResult whose J is
