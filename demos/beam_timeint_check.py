@@ -2,7 +2,7 @@
 
     python demos/beam_timeint_check.py [--periods 60] [--steps 2000]
 
-Takes points of the HBM branch of demos/beam2d.toml (3.0 N), starts an implicit Newmark
+Takes points of the HBM branch of demos/beam2d.toml (3.0 N; --harmonics to change H), starts an implicit Newmark
 integration (average acceleration, Newton on each step) of the same equations from each point's
 state at t = 0, and compares half the peak-to-peak of b1.mid.uy over the last period with the HBM.
 The contact law in the integrator is written here from scratch (return mapping per step, the
@@ -86,7 +86,7 @@ def integrate(structure, U, omega, w0, *, periods: int, steps: int, dof: int):
             v1 = v + dt / 2 * (a + a1)
             fcn, w1, Kt = contact((G @ x).reshape(-1, 2), w, pr.kt, pr.kn, pr.mu, pr.N0)
             r = M @ a1 + D @ v1 + K @ x + G.T @ fcn.ravel() - force(t)
-            if np.abs(r).max() <= 1e-10 * np.abs(structure.fc).max():
+            if np.abs(r).max() <= 1e-9 * np.abs(structure.fc).max():
                 break
             key = Kt.round(12).tobytes()
             if key not in lu_cache:
@@ -94,7 +94,9 @@ def integrate(structure, U, omega, w0, *, periods: int, steps: int, dof: int):
                 lu_cache[key] = spla.splu((base + G.T @ Kc @ G).tocsc())
             x = x - lu_cache[key].solve(r)
         else:
-            raise RuntimeError(f"Newmark step at t = {t:.6g} s did not converge: max|r| = {np.abs(r).max():.3e} N")
+            # a stick/slip switch can make Newton cycle just above the tolerance: accept below 1e-7
+            if np.abs(r).max() > 1e-7 * np.abs(structure.fc).max():
+                raise RuntimeError(f"Newmark step at t = {t:.6g} s did not converge: max|r| = {np.abs(r).max():.3e} N")
         u, v, a, w = x, v1, a1, w1
         k = it - (periods - 2) * steps
         if k >= 0:
@@ -106,20 +108,28 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--periods", type=int, default=60)
     ap.add_argument("--steps", type=int, default=2000)
+    ap.add_argument("--harmonics", type=int, help="override the scene's H")
     ap.add_argument("--out", default="results/beam_timeint")
     args = ap.parse_args(argv)
     scene = load_scene(HERE / "beam2d.toml")
+    if args.harmonics:
+        import dataclasses
+
+        scene = dataclasses.replace(scene, solver=dataclasses.replace(scene.solver, harmonics=args.harmonics))
     structure, frf, _ = solve_scene(scene, progress=False)
     dof = structure.outputs["b1.mid.uy"]
     amp = frf.half_peak_to_peak(dof)
     sep = (frf.states == 2).mean(axis=(1, 2))
     f_hz = frf.omega / (2 * np.pi)
-    # points: stuck flank (275 Hz), and the upper and lower separated branches near 265 Hz
+    # points: the stuck flank at 275 Hz; on the separating part, the largest amplitude, the lowest
+    # frequency (the fold) and a point half-way between them along the branch
     picks = {"stuck flank 275 Hz": int(np.argmin(np.abs(f_hz - 275.0) + 1e3 * (sep > 0)))}
-    near = np.flatnonzero((sep > 0) & (np.abs(f_hz - 265.0) < 0.5))
-    if near.size:
-        picks["separated, upper, 265 Hz"] = int(near[np.argmax(amp[near])])
-        picks["separated, lower, 265 Hz"] = int(near[np.argmin(amp[near])])
+    on = np.flatnonzero(sep > 0)
+    if on.size:
+        top, fold = int(on[np.argmax(amp[on])]), int(on[np.argmin(f_hz[on])])
+        picks["separated, largest amplitude"] = top
+        picks["separated, half-way to the fold"] = (top + fold) // 2
+        picks["separated, lowest frequency"] = fold
     from jointfem.hbm.residual import HBMResidual
     from jointfem.hbm.harmonics import Harmonics
 
@@ -137,7 +147,8 @@ def main(argv=None) -> int:
               f"({100 * (a_ti / amp[i] - 1):+.3f} %, drift {a_ti / a_prev - 1:+.1e} per period)")
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    (out / "check.json").write_text(json.dumps({"periods": args.periods, "steps_per_period": args.steps,
+    (out / "check.json").write_text(json.dumps({"harmonics": scene.solver.harmonics, "samples": scene.solver.samples,
+                                                "periods": args.periods, "steps_per_period": args.steps,
                                                 "points": report}, indent=2))
     return 0
 
