@@ -62,3 +62,17 @@ def test_levels_demo_coarse(tmp_path):
     assert json.loads((tmp_path / "levels.json").read_text())["F_sep_N"] == pytest.approx(report["F_sep_N"])
     # the separating level softens: its peak lies below the stuck resonance
     assert report["separation"]["peak_Hz"] < report["stuck"]["peak_Hz"] - 0.5
+
+
+def test_time_integration_check_runs_and_holds_on_the_stuck_flank(tmp_path):
+    """The beam's Newmark check, on a light setting (H = 3, N = 256, 3 periods of 1000 steps):
+    it asserts itself that the stuck-flank orbit is kept to 0.1 %."""
+    import subprocess
+
+    r = subprocess.run([sys.executable, str(ROOT / "demos" / "beam_timeint_check.py"), "--harmonics", "3",
+                        "--samples", "256", "--periods", "3", "--steps", "1000", "--out", str(tmp_path)],
+                       capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr[-2000:]
+    report = json.loads((tmp_path / "check.json").read_text())
+    assert abs(report["points"]["stuck flank 275 Hz"]["rel_diff"]) < 1e-3
+    assert report["points"]["separated, largest amplitude"]["separated_share_hbm"] > 0
