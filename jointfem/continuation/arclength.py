@@ -40,11 +40,8 @@ class ContinuationError(RuntimeError):
 class NewtonOptions:
     tol: float = 1e-10  # on max|R| / r_scale
     max_iter: int = 40
-    kink_tol: float = 1e-8  # a root on a kink of the sampled law is accepted below this (see _damped_newton);
-    # the AFT sampling error of a nonsmooth law is O(N^-2), about 1e-5 relative at N = 256, so
-    # demanding less of a stalled Newton would not make the answer more accurate
-    stall_iter: int = 8
-    step_tol: float = 1e-12  # on max|dy| (scaled): accept when the update is negligible
+    kink_tol: float = 1e-8  # a Newton stalled on a kink of the sampled law is accepted below this,
+    stall_iter: int = 8  # after this many iterations without halving its best residual (_damped_newton)
     max_backtrack: int = 6  # step halvings of the line search
 
 
