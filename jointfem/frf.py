@@ -53,12 +53,24 @@ def compute_frf(structure: Structure, options: SweepOptions, *,
     lam_scale = abs(options.omega_end - options.omega_start)
     t_setup = time.perf_counter() - t0
 
+    # The continuation evaluates an accepted point again for its tangent and for its contact
+    # states: keep the last evaluation instead of running the AFT three times.
+    last = {"key": None, "ev": None}
+
+    def evaluate(U, omega, jacobian):
+        key = (float(omega), U.tobytes())
+        ev = last["ev"]
+        if last["key"] != key or (jacobian and ev.J is None):
+            ev = hbm.evaluate(U, omega, jacobian=jacobian)
+            last.update(key=key, ev=ev)
+        return ev
+
     def fun(U, omega):
-        ev = hbm.evaluate(U, omega)
+        ev = evaluate(U, omega, True)
         return ev.R, ev.J, ev.dR_domega
 
     def states(U, omega):
-        ev = hbm.evaluate(U, omega, jacobian=False)
+        ev = evaluate(U, omega, False)
         if not ev.contact:
             return np.zeros((h.N, 0), dtype=np.int8)
         return np.concatenate([c.state_t for c in ev.contact], axis=1)
