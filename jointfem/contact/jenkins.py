@@ -14,22 +14,28 @@ position ``w`` (shape ``(P, num_tangential)``) carries the memory.
 Discrete law at each time sample (return mapping)::
 
     N = N0 + kn g_n                       (N0 if no normal DOF)
-    N <= 0:        f = 0, w = g_t          (separated; the spring re-engages unloaded)
+    N <= 0:        f = 0, w = g_t          (separated)
+    first contact: w_prev = g_t at the zero crossing of N between the samples (re-engages unloaded)
     t = kt (g_t - w_prev)                  (trial force)
     |t| <= mu N:   f_t = t, w = w_prev      (stick)
     otherwise:     f_t = mu N t/|t|, w = g_t - f_t/kt   (slip, radial return)
 
+The force coefficients are the DFT of these samples, except that the normal force of a sample
+next to a separated one is crossing-corrected (see _kernels._phi and docs/theory.md).
+
 The march is sequential in time and vectorised over pairs.  The periodic steady
-state is the fixed point ``w_start = P(w_start; g)`` of the period map, found
-by Newton on the slider state (exact in 1D after one period).  Pairs that
-stick for the whole period keep ``w = 0`` (the unloaded spring position), so a
-fully stuck joint is exactly the linear spring ``f - f0 = Kc g``.
+state is marched from w = 0: plain periods, then Newton on the fixed point
+``w_start = P(w_start; g)`` of the period map.  A pair that never slips keeps
+``w = 0`` (the unloaded spring position), so a fully stuck joint is exactly the
+linear spring ``f - f0 = Kc g``; a pair that slips only in its transient and then
+sticks for good (shakedown) keeps the slider where its transient left it.
 
 The Jacobian of the force coefficients with respect to the gap coefficients is
 exact: the tangent is propagated through the march, including the dependence
 of every stick phase on the slider state at the last stick onset, and through
 the periodicity of the steady state (implicit function theorem on the fixed
-point), so ``d F / d G = J_G + J_w (I - T)^-1 S``.
+point), so ``d F / d G = J_G + J_w (I - T)^-1 S``; for a shakedown, through the
+transient periods instead.
 """
 from __future__ import annotations
 
