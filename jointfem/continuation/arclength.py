@@ -12,7 +12,7 @@ over folds or onto other branches; true corners of a nonsmooth branch pass).
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Callable
 
 import numpy as np
@@ -36,6 +36,24 @@ class ContinuationError(RuntimeError):
     """Continuation cannot go on (step at its minimum, or a non-finite value)."""
 
 
+class Adaptive:
+    """Hooks of a problem whose equations change along the branch (the penalty ROM's active set).
+
+    ``before_step(x, lam)`` runs before each predictor at the last accepted point; it may change
+    the problem and return a new x there (or None: unchanged).  ``after_converge(x, lam)`` runs
+    on each converged corrector; True means the point broke a condition of the problem, which
+    has been changed, and the step is redone from the last accepted point with the same length.
+    """
+
+    max_redo: int = 50
+
+    def before_step(self, x, lam):  # pragma: no cover - interface
+        return None
+
+    def after_converge(self, x, lam) -> bool:  # pragma: no cover - interface
+        return False
+
+
 @dataclass(frozen=True)
 class NewtonOptions:
     tol: float = 1e-10  # on max|R| / r_scale
@@ -43,6 +61,7 @@ class NewtonOptions:
     kink_tol: float = 1e-8  # a Newton stalled on a kink of the sampled law is accepted below this,
     stall_iter: int = 8  # after this many iterations without halving its best residual (_damped_newton)
     max_backtrack: int = 6  # step halvings of the line search
+    relaxed_kink_tol: float = 1e-6  # kink_tol once the step has shrunk below ContinuationOptions.relax_ds
 
 
 @dataclass(frozen=True)
@@ -56,6 +75,10 @@ class ContinuationOptions:
     max_turn_deg: float = 45.0
     turn_ds_floor: float = 1e-4  # steps shorter than this are not refused for turning
     target_turn_deg: float = 8.0  # the step shrinks when the tangent turns more than this
+    relax_ds: float = 1e-5  # below this step a corrector stalled on a kink is accepted up to relaxed_kink_tol
+    max_jump: float = 3.0  # a corrector that lands farther than this many steps from the last point fails
+    max_reversal_deg: float = 30.0  # a step whose tangent turns by more than 180 - this is always refused
+    lam_bounds: tuple[float, float] | None = None  # the branch must stay inside (else ContinuationError)
     newton: NewtonOptions = field(default_factory=NewtonOptions)
 
 
@@ -116,6 +139,8 @@ def _damped_newton(F, z0, opts: "NewtonOptions", what: str, lam_of):
             best_res, best_z = res, z
         if it - best_it >= opts.stall_iter and best_res <= opts.kink_tol:
             return best_z, it, best_res
+        if it - best_it >= 2 * opts.stall_iter:
+            break  # no halving of the residual for this long: give up early (the step will shrink)
         if it == opts.max_iter:
             break
         dz = _solve(A, -r)
@@ -183,15 +208,24 @@ def _tangent(J, dl, t_prev):
 def continue_branch(fun: Callable, x0: np.ndarray, lam0: float, lam_end: float, *, x_scale, lam_scale: float,
                     r_scale: float, options: ContinuationOptions = ContinuationOptions(),
                     callback: Callable[[ContinuationPoint], None] | None = None,
-                    extra: Callable[[np.ndarray, float], object] | None = None) -> list[ContinuationPoint]:
+                    extra: Callable[[np.ndarray, float], object] | None = None,
+                    adapt: Adaptive | None = None) -> list[ContinuationPoint]:
     """Follow R(x, lam) = 0 from (x0, lam0) until lam passes lam_end (either direction).
 
     fun(x, lam) -> (R, dR/dx, dR/dlam).  x0 is an initial guess at lam0 (refined by Newton).
     ``extra(x, lam)`` is stored with each point; ``callback(point)`` is called per accepted point.
+    ``adapt``: hooks of a problem that changes along the branch (see Adaptive).
     """
     opts = options
     x_scale = np.broadcast_to(np.asarray(x_scale, float), np.shape(x0)).copy()
     x, it0 = solve_newton(fun, x0, lam0, x_scale=x_scale, r_scale=r_scale, options=opts.newton)
+    for _ in range(Adaptive.max_redo):
+        if adapt is None or not adapt.after_converge(x, lam0):
+            break
+        x, it = solve_newton(fun, x, lam0, x_scale=x_scale, r_scale=r_scale, options=opts.newton)
+        it0 += it
+    else:
+        raise ContinuationError(f"the problem kept changing at the start point lam = {lam0:.9g}")
     g = _scaled(fun, x_scale, lam_scale, r_scale)
     y, mu = x / x_scale, lam0 / lam_scale
     mu_end = lam_end / lam_scale
@@ -210,22 +244,53 @@ def continue_branch(fun: Callable, x0: np.ndarray, lam0: float, lam_end: float, 
         t = -t
     ds = opts.ds0
     cos_max = np.cos(np.deg2rad(opts.max_turn_deg))
+    redo = 0
     while (mu - mu_end) * direction < 0:
         if len(points) >= opts.max_points:
             raise ContinuationError(f"continuation stopped after {opts.max_points} points at "
                                     f"lam = {mu * lam_scale:.9g} before reaching {lam_end:.9g}")
+        if adapt is not None and redo == 0:
+            x_new = adapt.before_step(y * x_scale, mu * lam_scale)
+            if x_new is not None:
+                y = x_new / x_scale
+                R, J, dl = g(y, mu)
+                t = _tangent(J, dl, t)
         z_p = np.append(y, mu) + ds * t
-        failure = None
+        failure, changed = None, False
         try:
-            y_new, mu_new, it, res = _corrector(g, z_p[:-1], z_p[-1], t, opts.newton, lam_scale)
-            R, J, dl = g(y_new, mu_new)
-            t_new = _tangent(J, dl, t)
+            # A root on a kink of the sampled law (a sample changing state) can stall Newton just
+            # above kink_tol however short the step: accept it at a looser, recorded residual.
+            nopts = opts.newton if ds > opts.relax_ds else replace(opts.newton, kink_tol=max(
+                opts.newton.kink_tol, opts.newton.relaxed_kink_tol))
+            y_new, mu_new, it, res = _corrector(g, z_p[:-1], z_p[-1], t, nopts, lam_scale)
+            changed = adapt is not None and adapt.after_converge(y_new * x_scale, mu_new * lam_scale)
+            if changed:
+                # the problem changed: the tangent at the last accepted point, then the same step again
+                R, J, dl = g(y, mu)
+                t = t_new = _tangent(J, dl, t)
+                log.debug("step redone at lam=%.6g: the problem changed", mu_new * lam_scale)
+            else:
+                R, J, dl = g(y_new, mu_new)
+                t_new = _tangent(J, dl, t)
             # A true corner of the branch (slip onset on a sampled period is one) turns the
             # tangent however short the step; only steps longer than turn_ds_floor are refused.
-            if float(t_new @ t) < cos_max and ds > opts.turn_ds_floor:
+            jump = float(np.linalg.norm(np.append(y_new - y, mu_new - mu)))
+            if not changed and jump > opts.max_jump * ds:
+                # the hyperplane met the branch far from the predictor: another part of it
+                failure = f"corrector landed {jump / ds:.1f} step lengths away"
+            elif float(t_new @ t) < cos_max and ds > opts.turn_ds_floor:
                 failure = f"tangent turned by {np.rad2deg(np.arccos(np.clip(t_new @ t, -1, 1))):.1f} deg"
+            elif float(t_new @ t) < -np.cos(np.deg2rad(opts.max_reversal_deg)):
+                # however short the step: a tangent that reverses retraces the branch backwards
+                failure = f"tangent reversed ({np.rad2deg(np.arccos(np.clip(t_new @ t, -1, 1))):.1f} deg)"
         except (ConvergenceError, np.linalg.LinAlgError, RuntimeError) as exc:
             failure = str(exc)
+        if failure is None and changed:
+            redo += 1
+            if redo > Adaptive.max_redo:
+                raise ContinuationError(f"the problem kept changing at lam = {mu * lam_scale:.9g} "
+                                        f"after {redo - 1} redone steps")
+            continue
         if failure is not None:
             ds *= 0.5
             log.debug("step rejected at lam=%.6g (%s); ds -> %.3g", mu * lam_scale, failure, ds)
@@ -234,7 +299,13 @@ def continue_branch(fun: Callable, x0: np.ndarray, lam0: float, lam_end: float, 
                     f"continuation step fell below ds_min = {opts.ds_min:.1e} at lam = {mu * lam_scale:.9g} "
                     f"after {len(points)} points; last failure: {failure}")
             continue
+        if opts.lam_bounds is not None and not opts.lam_bounds[0] <= mu_new * lam_scale <= opts.lam_bounds[1]:
+            raise ContinuationError(
+                f"the branch left [{opts.lam_bounds[0]:.6g}, {opts.lam_bounds[1]:.6g}] at lam = "
+                f"{mu_new * lam_scale:.9g} after {len(points)} points: it turned back at a fold and "
+                f"does not come back to lam_end = {lam_end:.9g}")
         t_prev = t
+        redo = 0
         y, mu, t = y_new, mu_new, t_new
         x = y * x_scale
         points.append(ContinuationPoint(x, mu * lam_scale, it, ds, extra(x, mu * lam_scale) if extra else None,

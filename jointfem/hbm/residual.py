@@ -1,10 +1,11 @@
 """The harmonic-balance residual of a Structure, with its exact Jacobian.
 
-R(U, omega) = A(omega) U + sum_g B_g^T (F_g(B_g U) - f0_g) - F_ext = 0,
+R(U, omega) = A(omega) U + sum_g L_g^T (F_g(B_g U) - f0_g) - F_ext = 0,
 
 A(omega) = I (x) K + omega (nabla (x) D) + omega^2 (nabla^2 (x) M), where nabla is the
-d/dtau matrix of the harmonic layout and B_g = I (x) G_g the gap operator of a
-contact group.  U has the harmonic-major layout of ``Harmonics`` (m), R is in N.
+d/dtau matrix of the harmonic layout, B_g = I (x) G_g the gap operator of a
+contact group and L_g = I (x) L_g its load operator (L = G for a physical model; the
+penalty ROM applies the force to its internal variables instead).  U has the harmonic-major layout of ``Harmonics`` (m), R is in N.
 """
 from __future__ import annotations
 
@@ -21,7 +22,7 @@ from .harmonics import Harmonics
 @dataclass
 class Evaluation:
     R: np.ndarray  # residual, N
-    J: sp.csr_matrix | None  # dR/dU, N/m
+    J: sp.csr_matrix | np.ndarray | None  # dR/dU, N/m (dense for a small dense model)
     dR_domega: np.ndarray | None  # N s/rad
     contact: list[ContactResult]
 
@@ -29,16 +30,24 @@ class Evaluation:
 class HBMResidual:
     """Precomputed harmonic operators for one Structure and one Harmonics."""
 
-    def __init__(self, structure: Structure, harmonics: Harmonics):
+    DENSE_MAX = 3000  # unknowns; a ROM's matrices are dense, and sparse bookkeeping would dominate
+
+    def __init__(self, structure: Structure, harmonics: Harmonics, *, dense: bool | None = None):
         self.structure = structure
         self.harmonics = harmonics
         n, nh = structure.num_dofs, harmonics.num_hc
         self.num_unknowns = n * nh
+        if dense is None:
+            density = structure.K.nnz / max(n * n, 1)
+            dense = self.num_unknowns <= self.DENSE_MAX and density > 0.2
+        self.dense = dense
         nab = sp.csr_matrix(harmonics.derivative_matrix())
         eye = sp.identity(nh, format="csr")
         self._A0 = sp.kron(eye, structure.K, format="csr")
         self._A1 = sp.kron(nab, structure.D, format="csr")
         self._A2 = sp.kron(nab @ nab, structure.M, format="csr")
+        if dense:
+            self._A0, self._A1, self._A2 = (a.toarray() for a in (self._A0, self._A1, self._A2))
         F = np.zeros(self.num_unknowns)
         F[harmonics.cos(1, n)] = structure.fc
         F[harmonics.sin(1, n)] = structure.fs
@@ -47,16 +56,20 @@ class HBMResidual:
         for g in structure.contacts:
             P, m = g.pairs.num_pairs, g.pairs.num_comp
             B = sp.kron(eye, g.gap, format="csr")
+            BT = sp.kron(eye, g.load_operator, format="csr").T.tocsr()
             f0 = np.zeros((nh, P, m))
             f0[0] = g.pairs.preload
             # Sparsity pattern of the per-pair Jacobian blocks [p, h, a, h', b].
             p, h, a, h2, b = np.indices((P, nh, m, nh, m)).reshape(5, -1)
             rows = h * P * m + p * m + a
             cols = h2 * P * m + p * m + b
-            self._groups.append((g, B, B.T.tocsr(), f0, rows, cols))
+            if dense:
+                B, BT = B.toarray(), BT.toarray()
+            self._groups.append((g, B, BT, f0, rows, cols))
 
-    def linear_operator(self, omega: float) -> sp.csr_matrix:
-        return (self._A0 + omega * self._A1 + omega**2 * self._A2).tocsr()
+    def linear_operator(self, omega: float):
+        A = self._A0 + omega * self._A1 + omega**2 * self._A2
+        return A if self.dense else A.tocsr()
 
     def gaps(self, U: np.ndarray) -> list[np.ndarray]:
         """Gap coefficients per contact group, shape (num_hc, P, m)."""
@@ -74,10 +87,16 @@ class HBMResidual:
             R = R + BT @ (res.F - f0).ravel()
             if jacobian:
                 size = B.shape[0]
-                Jc = sp.csr_matrix((res.J.ravel(), (rows, cols)), shape=(size, size))
+                if self.dense:
+                    Jc = np.zeros((size, size))
+                    Jc[rows, cols] = res.J.ravel()
+                else:
+                    Jc = sp.csr_matrix((res.J.ravel(), (rows, cols)), shape=(size, size))
                 J = J + BT @ Jc @ B
         dR = (self._A1 + 2.0 * omega * self._A2) @ U if jacobian else None
-        return Evaluation(R, J.tocsr() if jacobian else None, dR, contact)
+        if jacobian and not self.dense:
+            J = J.tocsr()
+        return Evaluation(R, J if jacobian else None, dR, contact)
 
     def linear_solution(self, omega: float) -> np.ndarray:
         """Coefficients of the stuck linear response at omega (the continuation's start), m."""

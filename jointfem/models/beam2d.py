@@ -22,7 +22,7 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 
 from ..contact.jenkins import JenkinsPairs
-from .structure import ContactGroup, Structure
+from .structure import ContactGroup, Links, Structure
 
 COMPONENTS = ("ux", "uy", "rz")
 
@@ -159,8 +159,11 @@ def create_beam2d(spec: Beam2DSpec) -> Structure:
     else:
         D = modal_damping(K + group.stuck_stiffness, M, spec.modal_ratio)
     outputs = {nm: index[resolve_dof(spec, nm)] for nm in spec.outputs}
+    substructure = (free >= off2).astype(np.int32)  # 0: beam 1, 1: beam 2
+    links = Links(Lr[:, free].tocsr(), np.full(npair, spec.kr))
     return Structure(K=K, M=M, D=D, fc=fc, fs=np.zeros_like(fc), contacts=(group,), dof_names=names,
-                     outputs=outputs, info={"kind": "beam2d", "free_dofs": int(free.size)})
+                     outputs=outputs, info={"kind": "beam2d", "free_dofs": int(free.size)},
+                     substructure=substructure, links=links)
 
 
 def modal_damping(K: sp.spmatrix, M: sp.spmatrix, ratio: float) -> sp.csr_matrix:

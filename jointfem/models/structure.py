@@ -23,17 +23,41 @@ class ContactGroup:
     gap: sp.csr_matrix
     names: tuple[str, ...] = ()
     coords: np.ndarray | None = None
+    load: sp.csr_matrix | None = None  # L: the force enters the residual as L^T (f - f0); None means L = G
 
     def __post_init__(self):
         P, m = self.pairs.num_pairs, self.pairs.num_comp
         if self.gap.shape[0] != P * m:
             raise ValueError(f"gap operator has {self.gap.shape[0]} rows, expected {P}*{m}")
+        if self.load is not None and self.load.shape != self.gap.shape:
+            raise ValueError(f"load operator has shape {self.load.shape}, expected {self.gap.shape}")
+
+    @property
+    def load_operator(self) -> sp.csr_matrix:
+        return self.gap if self.load is None else self.load
 
     @property
     def stuck_stiffness(self) -> sp.csr_matrix:
-        """G^T Kc G: the group's contribution to the linearised (all-stuck) stiffness, N/m."""
+        """L^T Kc G: the group's contribution to the linearised (all-stuck) stiffness, N/m."""
         kc = sp.diags(self.pairs.stiffness.ravel())
-        return (self.gap.T @ kc @ self.gap).tocsr()
+        return sp.csr_matrix(self.load_operator.T @ kc @ self.gap)
+
+
+@dataclass(frozen=True)
+class Links:
+    """Linear joint connections between substructures (e.g. the beam's rotational springs).
+
+    gap: sparse (L, n) relative displacement of each link; stiffness: (L,) N/m or N m/rad.
+    Their stiffness G^T diag(k) G is already part of Structure.K; they are listed so that
+    reductions built from substructure matrices can take it out again.
+    """
+
+    gap: sp.csr_matrix
+    stiffness: np.ndarray
+
+    @property
+    def matrix(self) -> sp.csr_matrix:
+        return sp.csr_matrix(self.gap.T @ sp.diags(self.stiffness) @ self.gap)
 
 
 @dataclass(frozen=True)
@@ -55,6 +79,8 @@ class Structure:
     dof_names: tuple[str, ...] = ()
     outputs: dict = field(default_factory=dict)  # name -> dof index
     info: dict = field(default_factory=dict)
+    substructure: np.ndarray | None = None  # (n,) substructure id per DOF, for the CMS reductions
+    links: Links | None = None  # linear joint connections included in K
 
     @property
     def num_dofs(self) -> int:
