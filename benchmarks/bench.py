@@ -105,7 +105,7 @@ def bench_frf(scene_path: Path, *, force_factor=None, H=None, N=None, repeats=3)
     solve_scene(scene)  # warm up
     walls, frf = [], None
     for _ in range(repeats):
-        _, frf, _ = solve_scene(scene)
+        _, frf, *_ = solve_scene(scene)
         walls.append(frf.info["time_online_s"])
     _, shares, _ = _profile_share(lambda: solve_scene(scene))
     t = statistics.median(walls)

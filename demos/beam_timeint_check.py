@@ -121,7 +121,7 @@ def main(argv=None) -> int:
         import dataclasses
 
         scene = dataclasses.replace(scene, solver=dataclasses.replace(scene.solver, samples=args.samples))
-    structure, frf, _ = solve_scene(scene, progress=False)
+    structure, frf, *_ = solve_scene(scene, progress=False)
     dof = structure.outputs["b1.mid.uy"]
     amp = frf.half_peak_to_peak(dof)
     sep = (frf.states == 2).mean(axis=(1, 2))

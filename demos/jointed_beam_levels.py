@@ -56,7 +56,7 @@ def run(out: Path, *, coarse: bool = False, progress: bool = True) -> dict:
         force = factor * f_sep
         scene = dataclasses.replace(base, name=f"beam2d_{label}",
                                     model=dataclasses.replace(base.model, force=force))
-        structure, frf, _ = solve_scene(scene, progress=progress)
+        structure, frf, *_ = solve_scene(scene, progress=progress)
         folder = out / label.replace("-", "_")
         summary = save_frf(frf, folder, summary={"scene": str(scene.path), "level": label, "force_N": force,
                                                  "method": "full", "num_dofs": structure.num_dofs})

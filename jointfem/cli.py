@@ -10,10 +10,12 @@ from pathlib import Path
 
 from .continuation.arclength import ContinuationError, ContinuationOptions, ConvergenceError, NewtonOptions
 from .contact.jenkins import ContactError
+from .linalg import LinAlgError
 from .results import OutputError
+from .rom.common import METHODS, RomError, RomOptions
 from .scene import Scene, SceneError, create_structure, load_scene
 
-METHODS = ("full",)
+DEFAULT_COMPARE = "cb,rubin,macneal,dcb,jim,tvd:20:3,penalty"
 
 
 def _override(scene: Scene, args) -> Scene:
@@ -28,19 +30,31 @@ def _override(scene: Scene, args) -> Scene:
     return dataclasses.replace(scene, solver=dataclasses.replace(s, harmonics=H, samples=N))
 
 
-def solve_scene(scene: Scene, *, progress: bool = False):
-    """Build the model of a scene and compute its FRF.  Returns (structure, frf, seconds_build)."""
-    from .frf import SweepOptions, compute_frf
+def sweep_options(scene: Scene):
+    from .frf import SweepOptions
     from .hbm.harmonics import Harmonics
 
-    t0 = time.perf_counter()
-    structure = create_structure(scene)
-    t_build = time.perf_counter() - t0
     s = scene.solver
-    opts = SweepOptions(
+    return SweepOptions(
         omega_start=s.omega_start, omega_end=s.omega_end, harmonics=Harmonics(s.harmonics, s.samples),
         continuation=ContinuationOptions(ds0=s.ds0, ds_min=s.ds_min, ds_max=s.ds_max, max_points=s.max_points,
                                          newton=NewtonOptions(tol=s.tol)))
+
+
+def solve_scene(scene: Scene, *, progress: bool = False, method: str = "full", rom_options: RomOptions = RomOptions()):
+    """Build the model of a scene (and its ROM) and compute its FRF.
+
+    Returns (structure, frf, seconds_build, rom or None).
+    """
+    from .frf import compute_frf
+    from .rom import build_rom
+
+    t0 = time.perf_counter()
+    structure = create_structure(scene)
+    rom = None if method == "full" else build_rom(structure, method, rom_options)
+    t_build = time.perf_counter() - t0
+    s = scene.solver
+    opts = sweep_options(scene)
     bar = None
     callback = None
     if progress:
@@ -58,24 +72,37 @@ def solve_scene(scene: Scene, *, progress: bool = False):
             bar.set_postfix_str(f"omega={point.lam:.6g} newton={point.iterations}", refresh=False)
 
     try:
-        frf = compute_frf(structure, opts, callback=callback)
+        frf = compute_frf(structure if rom is None else rom, opts, callback=callback)
     finally:
         if bar is not None:
             bar.close()
-    return structure, frf, t_build
+    return structure, frf, t_build, rom
+
+
+def _rom_options(args) -> RomOptions:
+    if args.modes < 0 or args.tvd < 0:
+        raise RomError(f"--modes = {args.modes} and --tvd = {args.tvd} must be >= 0")
+    return RomOptions(modes=args.modes, tvd=args.tvd)
 
 
 def cmd_frf(args) -> int:
     scene = _override(load_scene(args.scene), args)
     out = Path(args.out) if args.out else Path("results") / scene.name
     t0 = time.perf_counter()
-    structure, frf, t_build = solve_scene(scene, progress=not args.quiet)
+    structure, frf, t_build, rom = solve_scene(scene, progress=not args.quiet, method=args.method,
+                                               rom_options=_rom_options(args))
     from .results import save_frf
 
+    sizes = frf.info["arrays"]["rom_size"]
+    rom_info = {"method": args.method, "size_min": int(sizes.min()), "size_max": int(sizes.max()),
+                "full_size": structure.num_dofs, "reduction_ratio_max": float(sizes.max() / structure.num_dofs)}
+    if rom is not None:
+        rom_info.update({"offline_s": rom.offline_s, "modes": args.modes, "tvd": args.tvd,
+                         **{k: v for k, v in rom.info.items()}, **frf.info.get("active_set_events", {})})
     summary = {
         "scene": str(scene.path), "scene_data": scene.data, "kind": scene.kind, "method": args.method,
         "model": {"num_dofs": structure.num_dofs, "num_pairs": structure.num_pairs},
-        "rom": {"num_dofs": structure.num_dofs, "note": "full order: the ROM is the model"},
+        "rom": rom_info,
         "harmonics": scene.solver.harmonics, "samples": scene.solver.samples,
         "num_unknowns": frf.info["num_unknowns"],
         "omega_start_rad_s": scene.solver.omega_start, "omega_end_rad_s": scene.solver.omega_end,
@@ -95,6 +122,41 @@ def cmd_frf(args) -> int:
     return 0
 
 
+def cmd_compare(args) -> int:
+    from .rom.compare import compare, parse_method, to_markdown
+
+    scene = _override(load_scene(args.scene), args)
+    defaults = _rom_options(args)
+    specs = [parse_method(m, defaults) for m in args.methods.split(",") if m.strip()]
+    structure = create_structure(scene)
+    output = args.output or next(iter(structure.outputs), None)
+    if output not in structure.outputs:
+        raise SceneError(args.scene, "--output", output, f"not an output of the scene ({', '.join(structure.outputs)})")
+    out = Path(args.out) if args.out else Path("results") / f"{scene.name}_compare"
+
+    def progress(label):
+        if not args.quiet:
+            print(f"jointfem compare: {label} ...", file=sys.stderr, flush=True)
+
+    results = compare(structure, specs, sweep_options(scene), output=output, progress=progress)
+    from .plots import plot_compare
+    from .results import write_table
+
+    rows = [r.row() for r in results]
+    write_table(rows, out / "compare.csv")
+    md = (f"# {scene.name}: ROMs against full order\n\nScene {scene.path}, output {output}, "
+          f"H = {scene.solver.harmonics}, N = {scene.solver.samples}, full size {structure.num_dofs}.\n\n"
+          + to_markdown(results))
+    from .results import atomic_write_text
+
+    atomic_write_text(out / "compare.md", md)
+    plot_compare(results, output, out / "compare_frf.png", out / "compare_pareto.png", title=scene.name)
+    if not args.quiet:
+        print(md)
+        print(f"-> {out}/")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="jointfem", description="Nonlinear vibration of jointed structures (HBM).")
     sub = p.add_subparsers(dest="command", required=True)
@@ -103,9 +165,23 @@ def build_parser() -> argparse.ArgumentParser:
     f.add_argument("--out", help="output folder (default results/<scene name>)")
     f.add_argument("--harmonics", type=int, help="number of harmonics H (overrides the scene)")
     f.add_argument("--samples", type=int, help="AFT time samples N >= 2H+1 (overrides the scene)")
-    f.add_argument("--method", choices=METHODS, default="full", help="model reduction (only full order so far)")
+    f.add_argument("--method", choices=METHODS, default="full", help="model reduction (default: full order)")
+    f.add_argument("--modes", type=int, default=20, help="vibration modes of the ROM (default 20)")
+    f.add_argument("--tvd", type=int, default=0, help="trial-vector derivatives (penalty, tvd; default 0)")
     f.add_argument("--quiet", action="store_true", help="no progress bar or summary")
     f.set_defaults(func=cmd_frf)
+    c = sub.add_parser("compare", help="every ROM against full order: sizes, times, errors (CSV, Markdown, PNG)")
+    c.add_argument("scene", help="scene file (TOML)")
+    c.add_argument("--methods", default=DEFAULT_COMPARE,
+                   help=f"comma-separated name[:modes[:tvd]] (default {DEFAULT_COMPARE})")
+    c.add_argument("--modes", type=int, default=20, help="default modes for methods given without (20)")
+    c.add_argument("--tvd", type=int, default=0, help="default TVDs for methods given without (0)")
+    c.add_argument("--output", help="output DOF the errors are measured on (default: the scene's first)")
+    c.add_argument("--out", help="output folder (default results/<scene name>_compare)")
+    c.add_argument("--harmonics", type=int, help="number of harmonics H (overrides the scene)")
+    c.add_argument("--samples", type=int, help="AFT time samples N >= 2H+1 (overrides the scene)")
+    c.add_argument("--quiet", action="store_true", help="no progress or table on the terminal")
+    c.set_defaults(func=cmd_compare)
     return p
 
 
@@ -114,7 +190,8 @@ def main(argv=None) -> int:
     args = build_parser().parse_args(argv)
     try:
         return args.func(args)
-    except (SceneError, ConvergenceError, ContinuationError, ContactError, OutputError) as exc:
+    except (SceneError, ConvergenceError, ContinuationError, ContactError, OutputError, RomError,
+            LinAlgError) as exc:
         print(f"jointfem: error: {exc}", file=sys.stderr)
         return 2
 

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import logging
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Callable
 
 import numpy as np
@@ -39,17 +39,89 @@ def compute_scales(structure: Structure, omega_start: float, omega_end: float, *
     return np.maximum(X, 1e-6 * top)
 
 
-def compute_frf(structure: Structure, options: SweepOptions, *,
+def compute_rom_scales(structure: Structure, T: np.ndarray, omega_start: float, omega_end: float, *,
+                       num: int = 101, displacements: np.ndarray | None = None) -> np.ndarray:
+    """Scale per ROM coordinate: its stuck linear amplitude, but at least the amplitude at which
+    its basis vector alone reaches the largest linear displacement of the structure.
+
+    A mode far from the range barely moves linearly, yet a joint that slips or opens excites it
+    to displacements of the size of the response: scaled by its linear amplitude alone, it
+    would dominate the arclength and shrink every step.
+    Coordinates listed in ``displacements`` are displacements themselves (the penalty ROM's
+    internal variables p): their scale is the largest displacement.
+    """
+    w = np.linspace(min(omega_start, omega_end), max(omega_start, omega_end), num)
+    X = np.abs(structure.linear_response(w))  # (num, q)
+    top = np.abs(X @ T.T).max()
+    if not np.isfinite(top) or top <= 0:
+        top = 1.0
+    col = np.abs(T).max(axis=0)
+    zs = np.maximum(X.max(axis=0), top / np.where(col > 0, col, 1.0))
+    if displacements is not None:
+        zs[displacements] = top
+    return zs
+
+
+class StructureProblem:
+    """HBM of a Structure: a physical model, or the Galerkin projection of one (CMS, tvd)."""
+
+    adapt = None
+
+    def __init__(self, structure: Structure, harmonics: Harmonics, basis: np.ndarray | None = None):
+        self.structure, self.harmonics, self.basis = structure, harmonics, basis
+        self.hbm = HBMResidual(structure, harmonics)
+        self.num_unknowns = self.hbm.num_unknowns
+        self.size = structure.num_dofs
+        self.num_pairs = structure.num_pairs
+
+    def evaluate(self, U, omega, *, jacobian=True):
+        return self.hbm.evaluate(U, omega, jacobian=jacobian)
+
+    def linear_solution(self, omega):
+        return self.hbm.linear_solution(omega)
+
+    def scales(self, omega_start, omega_end):
+        if self.basis is not None:
+            return compute_rom_scales(self.structure, self.basis, omega_start, omega_end)
+        return compute_scales(self.structure, omega_start, omega_end)
+
+    def states(self, U, omega, contact=None):
+        if contact is None:
+            contact = self.evaluate(U, omega, jacobian=False).contact
+        if not contact:
+            return np.zeros((self.harmonics.N, 0), dtype=np.int8)
+        return np.concatenate([c.state_t for c in contact], axis=1)
+
+
+def make_problem(model, harmonics: Harmonics):
+    """The HBM problem of a Structure, a ReducedModel or a PenaltyROM."""
+    from .rom.common import ReducedModel
+    from .rom.penalty import PenaltyProblem, PenaltyROM
+
+    if isinstance(model, PenaltyROM):
+        return PenaltyProblem(model, harmonics)
+    if isinstance(model, ReducedModel):
+        return StructureProblem(model.structure, harmonics, model.T)
+    return StructureProblem(model, harmonics)
+
+
+def compute_frf(model, options: SweepOptions, *,
                 callback: Callable[[ContinuationPoint], None] | None = None) -> FrequencyResponse:
-    """Nonlinear FRF of the full structure from the stuck linear solution at omega_start."""
+    """Nonlinear FRF from the stuck linear solution at omega_start.
+
+    ``model``: a Structure (full order), a ReducedModel (CMS, tvd) or a PenaltyROM.
+    """
     h = options.harmonics
     t0 = time.perf_counter()
-    hbm = HBMResidual(structure, h)
-    n = structure.num_dofs
-    dof_scale = compute_scales(structure, options.omega_start, options.omega_end)
+    problem = make_problem(model, h)
+    structure = problem.structure
+    nh = h.num_hc
+    q = problem.num_unknowns // nh
+    dof_scale = problem.scales(options.omega_start, options.omega_end)
     # Unit scaled norm for a response of the size of the largest linear one.
-    x_scale = np.tile(dof_scale, h.num_hc) * np.sqrt(n)
-    r_scale = float(max(np.abs(hbm.F_ext).max(), 1e-300))
+    x_scale = np.tile(dof_scale, nh) * np.sqrt(q)
+    F = np.concatenate([structure.fc, structure.fs])
+    r_scale = float(max(np.abs(F).max(), 1e-300))
     lam_scale = abs(options.omega_end - options.omega_start)
     t_setup = time.perf_counter() - t0
 
@@ -58,10 +130,10 @@ def compute_frf(structure: Structure, options: SweepOptions, *,
     last = {"key": None, "ev": None}
 
     def evaluate(U, omega, jacobian):
-        key = (float(omega), U.tobytes())
+        key = (float(omega), U.tobytes(), getattr(problem, "mask", np.zeros(0)).tobytes())
         ev = last["ev"]
         if last["key"] != key or (jacobian and ev.J is None):
-            ev = hbm.evaluate(U, omega, jacobian=jacobian)
+            ev = problem.evaluate(U, omega, jacobian=jacobian)
             last.update(key=key, ev=ev)
         return ev
 
@@ -69,29 +141,40 @@ def compute_frf(structure: Structure, options: SweepOptions, *,
         ev = evaluate(U, omega, True)
         return ev.R, ev.J, ev.dR_domega
 
-    def states(U, omega):
-        ev = evaluate(U, omega, False)
-        if not ev.contact:
-            return np.zeros((h.N, 0), dtype=np.int8)
-        return np.concatenate([c.state_t for c in ev.contact], axis=1)
+    def extra(U, omega):
+        mask = getattr(problem, "mask", None)
+        return (problem.states(U, omega, evaluate(U, omega, False).contact), problem.size,
+                None if mask is None else mask.copy())
 
-    U0 = hbm.linear_solution(options.omega_start)
+    # a frequency response lives at positive omega: a branch that leaves twice the sweep's span
+    # around it has turned back for good (folds inside that margin are followed)
+    lo, hi = sorted((options.omega_start, options.omega_end))
+    cont = options.continuation
+    if cont.lam_bounds is None:
+        cont = replace(cont, lam_bounds=(max(lo - (hi - lo), 0.0), hi + (hi - lo)))
+    U0 = problem.linear_solution(options.omega_start)
     t1 = time.perf_counter()
     points = continue_branch(fun, U0, options.omega_start, options.omega_end, x_scale=x_scale,
-                             lam_scale=lam_scale, r_scale=r_scale, options=options.continuation,
-                             callback=callback, extra=states)
+                             lam_scale=lam_scale, r_scale=r_scale, options=cont,
+                             callback=callback, extra=extra, adapt=problem.adapt)
     t_online = time.perf_counter() - t1
-    pair_names = tuple(nm for g in structure.contacts for nm in (g.names or
+    physical = problem.rom.full if problem.adapt is not None else structure
+    pair_names = tuple(nm for g in physical.contacts for nm in (g.names or
                        [f"pair{i}" for i in range(g.pairs.num_pairs)]))
+    info = {"time_setup_s": t_setup, "time_online_s": t_online, "num_unknowns": problem.num_unknowns,
+            # achieved max|R| / max|F| per point: below the Newton tol, or below kink_tol where a
+            # root on a kink of the sampled law stalled Newton (docs/theory.md)
+            "arrays": {"residual": np.array([p.residual for p in points]),
+                       "rom_size": np.array([p.extra[1] for p in points])}}
+    if problem.adapt is not None:
+        info["active_set_events"] = dict(problem.events)
+        # active internal variables per point (penalty ROM), in the order of the contact components
+        info["arrays"]["active"] = np.array([p.extra[2] for p in points])
     return FrequencyResponse(
         omega=np.array([p.lam for p in points]),
         U=np.array([p.x for p in points]),
         iterations=np.array([p.iterations for p in points]),
-        states=np.array([p.extra for p in points], dtype=np.int8),
-        harmonics=h, num_dofs=n, outputs=dict(structure.outputs), dof_names=structure.dof_names,
-        pair_names=pair_names,
-        info={"time_setup_s": t_setup, "time_online_s": t_online, "num_unknowns": hbm.num_unknowns,
-              # achieved max|R| / max|F| per point: below the Newton tol, or below kink_tol where a
-              # root on a kink of the sampled law stalled Newton (docs/theory.md)
-              "arrays": {"residual": np.array([p.residual for p in points])}},
+        states=np.array([p.extra[0] for p in points], dtype=np.int8),
+        harmonics=h, num_dofs=q, outputs=dict(structure.outputs), dof_names=structure.dof_names,
+        pair_names=pair_names, info=info,
     )

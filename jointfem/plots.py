@@ -69,3 +69,40 @@ def plot_levels(curves: list[tuple[str, FrequencyResponse]], output: str, path: 
     fig.savefig(path, dpi=120)
     plt.close(fig)
     return Path(path)
+
+
+def plot_compare(results, output: str, frf_path: Path, pareto_path: Path, *, title: str = "") -> tuple[Path, Path]:
+    """Overlaid FRFs of every method, and the largest curve error against the online time."""
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(7.5, 4.8))
+    for i, r in enumerate(results):
+        f = r.frf
+        ax.plot(f.omega / (2 * np.pi), f.amplitude(f.outputs[output]), "k-" if i == 0 else "-",
+                lw=2.2 if i == 0 else 1.1, label=f"{r.spec.label} (size {r.size_max})", zorder=1 if i == 0 else 2)
+    ax.set_xlabel("frequency [Hz]")
+    ax.set_ylabel(f"{output}: 1st harmonic amplitude [m]")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=7)
+    if title:
+        ax.set_title(title)
+    fig.tight_layout()
+    fig.savefig(frf_path, dpi=120)
+    plt.close(fig)
+
+    fig, ax = plt.subplots(figsize=(6.5, 4.5))
+    for r in results[1:]:
+        err = max(r.curve_err_pct, 1e-6)
+        ax.loglog(r.online_s, err, "o")
+        ax.annotate(f"{r.spec.label} ({r.size_max})", (r.online_s, err), fontsize=7, xytext=(4, 3),
+                    textcoords="offset points")
+    ax.axvline(results[0].online_s, color="k", ls="--", lw=1, label=f"full order ({results[0].online_s:.1f} s)")
+    ax.set_xlabel("online time [s]")
+    ax.set_ylabel("largest curve error [% of peak]")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7)
+    if title:
+        ax.set_title(title)
+    fig.tight_layout()
+    fig.savefig(pareto_path, dpi=120)
+    plt.close(fig)
+    return Path(frf_path), Path(pareto_path)

@@ -23,7 +23,8 @@ class FrequencyResponse:
 
     omega: (num_points,) rad/s.  U: (num_points, num_hc * n) harmonic coefficients, m.
     states: (num_points, N, num_pairs) int8, 0 stick / 1 slip / 2 separated.
-    iterations: Newton iterations per point.  outputs: name -> dof index.
+    iterations: Newton iterations per point.  outputs: name -> dof index, or for a ROM a
+    recovery row (num_dofs,) from the ROM coordinates (then num_dofs is the ROM's size).
     """
 
     omega: np.ndarray
@@ -41,9 +42,10 @@ class FrequencyResponse:
     def num_points(self) -> int:
         return self.omega.size
 
-    def coefficients(self, dof: int) -> np.ndarray:
-        """Harmonic coefficients of one DOF, shape (num_points, num_hc), m."""
-        return self.U.reshape(self.num_points, self.harmonics.num_hc, self.num_dofs)[:, :, dof]
+    def coefficients(self, dof) -> np.ndarray:
+        """Harmonic coefficients of one DOF (index, or recovery row), shape (num_points, num_hc), m."""
+        U = self.U.reshape(self.num_points, self.harmonics.num_hc, self.num_dofs)
+        return U[:, :, dof] if np.ndim(dof) == 0 else U @ np.asarray(dof)
 
     def amplitude(self, dof: int, k: int = 1) -> np.ndarray:
         """Amplitude of harmonic k of one DOF along the branch, m."""
@@ -93,6 +95,24 @@ def _atomic_write(path: Path, write):
         raise
 
 
+def atomic_write_text(path: Path, text: str):
+    _atomic_write(Path(path), lambda p: Path(p).write_text(text))
+
+
+def write_table(rows: list[dict], path: Path):
+    """A list of flat dicts as CSV (header from the first row), written atomically."""
+    import csv
+
+    def write(p):
+        with open(p, "w", newline="") as fh:
+            w = csv.DictWriter(fh, fieldnames=list(rows[0]))
+            w.writeheader()
+            for r in rows:
+                w.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in r.items()})
+
+    _atomic_write(Path(path), write)
+
+
 def save_frf(frf: FrequencyResponse, out: Path, *, summary: dict) -> dict:
     """Write frf.csv, branch.npz and summary.json into ``out``.  Returns the summary written."""
     out = Path(out)
@@ -115,7 +135,11 @@ def save_frf(frf: FrequencyResponse, out: Path, *, summary: dict) -> dict:
                 fh, omega=frf.omega, U=frf.U, iterations=frf.iterations, states=frf.states,
                 H=frf.harmonics.H, N=frf.harmonics.N, num_dofs=frf.num_dofs,
                 dof_names=np.array(frf.dof_names, dtype=str), pair_names=np.array(frf.pair_names, dtype=str),
-                output_names=np.array(names, dtype=str), output_dofs=np.array([frf.outputs[k] for k in names]),
+                output_names=np.array(names, dtype=str),
+                **({"output_dofs": np.array([frf.outputs[k] for k in names])} if all(
+                    np.ndim(frf.outputs[k]) == 0 for k in names) else
+                   {"output_recovery": np.array([np.broadcast_to(frf.outputs[k], (frf.num_dofs,)) if np.ndim(
+                       frf.outputs[k]) else np.eye(frf.num_dofs)[frf.outputs[k]] for k in names])}),
                 state_names=np.array(STATE_NAMES), layout=np.array("harmonic-major: U[j*n + dof], j=0 const, 2k-1 cos k, 2k sin k"),
                 **{k: np.asarray(v) for k, v in frf.info.get("arrays", {}).items()})
 

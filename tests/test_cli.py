@@ -39,3 +39,57 @@ def test_frf_writes_csv_npz_json_png(tmp_path):
     assert 1.3 < pk["omega_rad_s"] < 1.45 and pk["freq_Hz"] == pk["omega_rad_s"] / (2 * np.pi)
     png = (out / "frf.png").read_bytes()
     assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 20_000
+
+
+def _run(*args):
+    return subprocess.run([sys.executable, "-m", "jointfem", *map(str, args)], capture_output=True, text=True)
+
+
+def test_frf_with_the_penalty_rom_records_its_size(tmp_path):
+    scene = ROOT / "demos" / "sdof_jenkins.toml"
+    r = _run("frf", scene, "--out", tmp_path / "full", "--harmonics", "3", "--samples", "256", "--quiet")
+    assert r.returncode == 0, r.stderr
+    r = _run("frf", scene, "--out", tmp_path / "pen", "--harmonics", "3", "--samples", "256", "--quiet",
+             "--method", "penalty", "--modes", "1")
+    assert r.returncode == 0, r.stderr
+    s = json.loads((tmp_path / "pen" / "summary.json").read_text())
+    # one mode (the whole model) plus the slider's internal variable once it slips
+    assert s["method"] == "penalty" and s["rom"]["size_min"] == 1 and s["rom"]["size_max"] == 2
+    b = load_branch(tmp_path / "pen" / "branch.npz")
+    assert set(np.unique(b["rom_size"])) == {1, 2} and b["active"].shape == (b["omega"].size, 1)
+    assert b["output_recovery"].shape == (1, 2)
+    full = json.loads((tmp_path / "full" / "summary.json").read_text())["peaks"]["m.x"]
+    pen = s["peaks"]["m.x"]
+    # the complete basis is the full model: the peaks differ only by where the points fall (< 1e-4)
+    assert abs(pen["amp1_m"] / full["amp1_m"] - 1) < 1e-4
+    assert abs(pen["omega_rad_s"] / full["omega_rad_s"] - 1) < 1e-4
+
+
+def test_rom_errors_are_clear_and_early(tmp_path):
+    scene = ROOT / "demos" / "sdof_jenkins.toml"
+    r = _run("frf", scene, "--out", tmp_path / "cb", "--method", "cb", "--quiet")
+    assert r.returncode == 2 and "no substructures" in r.stderr and not (tmp_path / "cb").exists()
+    r = _run("compare", ROOT / "demos" / "beam2d.toml", "--out", tmp_path / "c", "--methods", "cb:10,penalty:x")
+    assert r.returncode == 2 and "'penalty:x'" in r.stderr and not (tmp_path / "c").exists()
+    r = _run("frf", scene, "--out", tmp_path / "p", "--method", "penalty", "--modes", "5", "--quiet")
+    assert r.returncode == 2 and "5 modes" in r.stderr and not (tmp_path / "p").exists()
+
+
+def test_compare_writes_table_and_plots(tmp_path):
+    text = (ROOT / "demos" / "beam2d.toml").read_text().replace("amplitude = 3.0", "amplitude = 2.0")
+    scene = tmp_path / "beam.toml"
+    scene.write_text(text)
+    out = tmp_path / "cmp"
+    r = _run("compare", scene, "--out", out, "--harmonics", "3", "--samples", "256",
+             "--methods", "cb:10,penalty:10", "--quiet")
+    assert r.returncode == 0, r.stderr
+    with open(out / "compare.csv") as fh:
+        rows = list(csv.DictReader(fh))
+    assert [row["method"] for row in rows] == ["full", "cb:10", "penalty:10"]
+    assert int(rows[1]["size_max"]) == 28 and float(rows[1]["reduction_ratio"]) == float(f"{28 / 120:.6g}")
+    assert int(rows[2]["size_min"]) == 10
+    for row in rows[1:]:
+        assert abs(float(row["peak_amp_err_pct"])) < 0.5 and abs(float(row["nf2_rel_err"])) < 1e-4
+    assert "| cb:10 |" in (out / "compare.md").read_text()
+    for png in ("compare_frf.png", "compare_pareto.png"):
+        assert (out / png).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and (out / png).stat().st_size > 10_000

@@ -1,0 +1,240 @@
+"""The reference reductions of the paper's Fig. 5 and 6, built from substructure matrices.
+
+Every basis T keeps the physical contact DOFs recoverable (g = G T z), so the same AFT
+runs on every ROM.  The substructures are coupled through the joint: the contact pairs
+(nonlinear) and the Structure's linear ``links`` (the beam's rotational springs).  The
+substructure matrices are K_s, M_s of the assembled K - links, M restricted to one
+substructure; the boundary DOFs of a substructure are those the joint touches.
+
+* cb: fixed-interface modes + constraint modes (boundary DOFs kept).
+* rubin: free-interface modes + residual-flexibility attachment modes, written in the
+  boundary DOFs (residual mass kept).
+* macneal: the Rubin basis without the residual inertia (mass of the kept modes only).
+* dcb: free-interface modes + residual attachment modes of the joint's interface force
+  patterns, one per joint connection (contact component or link).  The joint is springs,
+  not rigid compatibility, so the assembled system is solved in primal form by Galerkin
+  projection on this basis (Rixen's DCB would add the interface forces as Lagrange
+  multipliers; with springs the forces follow from the gaps).
+* jim: CB whose boundary DOFs are replaced by the lowest characteristic interface modes of
+  the CB-reduced boundary matrices, joint stuck (Castanier et al.'s characteristic
+  constraint modes).
+* tvd: global vibration modes of the stuck structure + POD-compressed trial-vector
+  derivatives (derivatives of the modes with respect to each contact stiffness).
+
+Modes: ``RomOptions.modes`` is the total number of substructure modes for the CMS methods,
+split evenly, and the number of global modes for tvd.
+"""
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+
+from ..linalg import Factorized, LinAlgError, eigen, pod
+from ..models.structure import Structure
+from .common import ReducedModel, RomError, RomOptions, project
+
+
+def joint_operator(structure: Structure) -> tuple[sp.csr_matrix, np.ndarray]:
+    """All joint connections as rows: contact components first, then links.  Returns (C, k)."""
+    rows = [g.gap for g in structure.contacts]
+    ks = [g.pairs.stiffness.ravel() for g in structure.contacts]
+    if structure.links is not None:
+        rows.append(structure.links.gap)
+        ks.append(np.asarray(structure.links.stiffness, float))
+    if not rows:
+        raise RomError("the model has no joint: nothing to reduce around")
+    return sp.vstack(rows).tocsr(), np.concatenate(ks)
+
+
+class _Sub:
+    """One substructure: its DOFs, boundary/interior split and matrices."""
+
+    def __init__(self, sid, dofs, boundary_mask, K, M):
+        self.id, self.dofs = sid, dofs
+        self.b = np.flatnonzero(boundary_mask)
+        self.i = np.flatnonzero(~boundary_mask)
+        self.K, self.M = K, M
+
+
+def substructures(structure: Structure, method: str) -> list[_Sub]:
+    if structure.substructure is None:
+        raise RomError(f"{method}: the model ({structure.info.get('kind', '?')}) defines no substructures; "
+                       f"use --method penalty or tvd, which need none")
+    sid = np.asarray(structure.substructure)
+    K = structure.K - (structure.links.matrix if structure.links is not None else 0)
+    K = sp.csr_matrix(K)
+    C, _ = joint_operator(structure)
+    touched = np.zeros(structure.num_dofs, bool)
+    touched[np.unique(C.indices)] = True
+    subs = []
+    for s in np.unique(sid):
+        dofs = np.flatnonzero(sid == s)
+        other = np.flatnonzero(sid != s)
+        cross = K[dofs][:, other]
+        if cross.nnz and np.abs(cross.data).max() > 1e-12 * np.abs(K.data).max():
+            raise RomError(f"{method}: K couples substructure {s} to another outside the joint links; "
+                           f"the model's substructure labels are inconsistent")
+        subs.append(_Sub(int(s), dofs, touched[dofs], K[dofs][:, dofs].tocsr(), structure.M[dofs][:, dofs].tocsr()))
+    if len(subs) < 2:
+        raise RomError(f"{method}: needs at least two substructures, the model has {len(subs)}")
+    return subs
+
+
+def _split(total: int, parts: int) -> list[int]:
+    return [total // parts + (1 if i < total % parts else 0) for i in range(parts)]
+
+
+def _free_modes(sub: _Sub, num: int, method: str):
+    try:
+        w2, Phi = eigen(sub.K, sub.M, num, what=f"{method}: substructure {sub.id}")
+        lu = Factorized(sub.K, what=f"{method}: stiffness of substructure {sub.id}")
+    except LinAlgError as exc:
+        raise RomError(str(exc)) from exc
+    if w2.size and w2[0] <= 1e-8 * max(w2[-1], 1e-300):
+        raise RomError(f"{method}: substructure {sub.id} has rigid-body modes (free-free): residual flexibility "
+                       f"needs supports; use cb, jim, tvd or penalty")
+    return w2, Phi, lu
+
+
+def _residual_flexibility(lu, Phi, w2, X):
+    """(K^-1 - Phi diag(1/w2) Phi^T) X: the static response the kept free modes miss."""
+    return lu.solve(X) - Phi @ ((Phi.T @ X) / w2[:, None])
+
+
+def craig_bampton_basis(structure: Structure, options: RomOptions, method: str = "cb"):
+    subs = substructures(structure, method)
+    n = structure.num_dofs
+    modes, statics = [], []
+    for sub, num in zip(subs, _split(options.modes, len(subs))):
+        Kii, Mii = sub.K[sub.i][:, sub.i], sub.M[sub.i][:, sub.i]
+        try:
+            _, Phi = eigen(Kii, Mii, num, what=f"{method}: fixed-interface substructure {sub.id}")
+            Psi = -Factorized(Kii, what=f"{method}: interior stiffness of substructure {sub.id}").solve(
+                sub.K[sub.i][:, sub.b])
+        except LinAlgError as exc:
+            raise RomError(str(exc)) from exc
+        Tm = np.zeros((n, num))
+        Tm[sub.dofs[sub.i]] = Phi
+        Ts = np.zeros((n, sub.b.size))
+        Ts[sub.dofs[sub.i]] = Psi
+        Ts[sub.dofs[sub.b], np.arange(sub.b.size)] = 1.0
+        modes.append(Tm)
+        statics.append(Ts)
+    return np.hstack(modes), np.hstack(statics)
+
+
+def craig_bampton(structure: Structure, options: RomOptions) -> ReducedModel:
+    Tm, Ts = craig_bampton_basis(structure, options)
+    return project(structure, np.hstack([Tm, Ts]), "cb", info={"modes": Tm.shape[1], "statics": Ts.shape[1]})
+
+
+def _rubin_basis(structure: Structure, options: RomOptions, method: str):
+    subs = substructures(structure, method)
+    n = structure.num_dofs
+    Tm, Ts, Phis = [], [], []
+    for sub, num in zip(subs, _split(options.modes, len(subs))):
+        w2, Phi, lu = _free_modes(sub, num, method)
+        nb = sub.b.size
+        E = np.zeros((sub.dofs.size, nb))
+        E[sub.b, np.arange(nb)] = 1.0
+        A = _residual_flexibility(lu, Phi, w2, E)  # attachment modes of unit boundary forces
+        Abb = A[sub.b]
+        try:
+            Abb_inv = np.linalg.inv(Abb)
+        except np.linalg.LinAlgError as exc:
+            raise RomError(f"{method}: the boundary residual flexibility of substructure {sub.id} is singular "
+                           f"(too many modes for its boundary)") from exc
+        blk_m = np.zeros((n, num))
+        blk_m[sub.dofs] = Phi - A @ (Abb_inv @ Phi[sub.b])
+        blk_s = np.zeros((n, nb))
+        blk_s[sub.dofs] = A @ Abb_inv
+        blk_phi = np.zeros((n, num))
+        blk_phi[sub.dofs] = Phi
+        Tm.append(blk_m)
+        Ts.append(blk_s)
+        Phis.append(blk_phi)
+    return np.hstack(Tm), np.hstack(Ts), np.hstack(Phis)
+
+
+def rubin(structure: Structure, options: RomOptions) -> ReducedModel:
+    Tm, Ts, _ = _rubin_basis(structure, options, "rubin")
+    return project(structure, np.hstack([Tm, Ts]), "rubin", info={"modes": Tm.shape[1], "statics": Ts.shape[1]})
+
+
+def macneal(structure: Structure, options: RomOptions) -> ReducedModel:
+    """Rubin's basis; the reduced mass keeps only the inertia of the kept free modes."""
+    Tm, Ts, Phi = _rubin_basis(structure, options, "macneal")
+    T = np.hstack([Tm, Ts])
+    MPhi_T = T.T @ (structure.M @ Phi)  # (q, modes); Phi^T M (residual flexibility) = 0
+    return project(structure, T, "macneal", M_override=MPhi_T @ MPhi_T.T,
+                   info={"modes": Tm.shape[1], "statics": Ts.shape[1]})
+
+
+def dual_craig_bampton(structure: Structure, options: RomOptions) -> ReducedModel:
+    subs = substructures(structure, "dcb")
+    C, _ = joint_operator(structure)
+    n = structure.num_dofs
+    Tm, Ta = [], np.zeros((n, C.shape[0]))
+    for sub, num in zip(subs, _split(options.modes, len(subs))):
+        w2, Phi, lu = _free_modes(sub, num, "dcb")
+        blk = np.zeros((n, num))
+        blk[sub.dofs] = Phi
+        Tm.append(blk)
+        Cs = C[:, sub.dofs].T.toarray()  # interface force patterns on this substructure
+        Ta[sub.dofs] = _residual_flexibility(lu, Phi, w2, Cs)
+    Tm = np.hstack(Tm)
+    return project(structure, np.hstack([Tm, Ta]), "dcb", info={"modes": Tm.shape[1], "statics": Ta.shape[1]})
+
+
+def joint_interface_modes(structure: Structure, options: RomOptions) -> ReducedModel:
+    Tm, Ts = craig_bampton_basis(structure, options, "jim")
+    nb = Ts.shape[1]
+    C, _ = joint_operator(structure)
+    num = options.interface_modes if options.interface_modes is not None else max(1, nb // 2)
+    if not 1 <= num <= nb:
+        raise RomError(f"jim: interface_modes = {num} must be in [1, {nb}] (the boundary DOFs)")
+    Kb = Ts.T @ (structure.K_lin @ Ts)
+    Mb = Ts.T @ (structure.M @ Ts)
+    _, Q = eigen(Kb, Mb, num, what="jim: interface")
+    return project(structure, np.hstack([Tm, Ts @ Q]), "jim", info={"modes": Tm.shape[1], "statics": num})
+
+
+def trial_vector_derivatives(structure: Structure, Phi: np.ndarray, w2: np.ndarray, num: int,
+                             against: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """POD of the mode derivatives with respect to the stiffness of each contact component.
+
+    For each mass-normalised mode phi_i of the stuck structure and each contact component j
+    (stiffness k_j, gap row g_j), the exact derivative d phi_i / d log k_j solves the bordered
+    system [[K - w_i^2 M, M phi_i], [phi_i^T M, 0]] [v; c] = [-(k_j g_j^T g_j phi_i - dw2 M phi_i); 0].
+    There are one per mode and component before POD.  Returns (num vectors, all singular values).
+    """
+    n = structure.num_dofs
+    if num == 0:
+        return np.zeros((n, 0)), np.zeros(0)
+    G = sp.vstack([g.gap for g in structure.contacts]).tocsr()
+    k = np.concatenate([g.pairs.stiffness.ravel() for g in structure.contacts])
+    K, M = structure.K_lin, structure.M
+    snaps = []
+    for i in range(Phi.shape[1]):
+        phi = Phi[:, i]
+        Mphi = M @ phi
+        gphi = G @ phi  # (J,)
+        rhs = -(G.T.toarray() * (k * gphi) - np.outer(Mphi, k * gphi**2))
+        A = sp.bmat([[K - w2[i] * M, sp.csr_matrix(Mphi[:, None])], [sp.csr_matrix(Mphi[None, :]), None]], format="csc")
+        try:
+            v = Factorized(A, what=f"TVD: bordered matrix of mode {i + 1}").solve(np.vstack([rhs, np.zeros((1, k.size))]))
+        except LinAlgError as exc:
+            raise RomError(f"{exc} (a repeated eigenvalue?)") from exc
+        snaps.append(v[:n])
+    V = np.hstack(snaps)
+    vecs, sv = pod(V, M, num, against=Phi if against is None else against)
+    if vecs.shape[1] < num:
+        raise RomError(f"tvd: only {vecs.shape[1]} independent trial-vector derivatives exist, {num} asked")
+    return vecs, sv
+
+
+def tvd_method(structure: Structure, options: RomOptions) -> ReducedModel:
+    w2, Phi = eigen(structure.K_lin, structure.M, options.modes, what="tvd: stuck structure")
+    V, sv = trial_vector_derivatives(structure, Phi, w2, options.tvd)
+    return project(structure, np.hstack([Phi, V]), "tvd",
+                   info={"modes": Phi.shape[1], "tvd": V.shape[1], "tvd_singular_values": sv[:10].tolist()})

@@ -1,0 +1,157 @@
+"""Speed against accuracy: every method's size, times and errors against full order.
+
+A method is given as ``name[:modes[:tvd]]`` (e.g. ``cb:10``, ``penalty:10:3``); missing
+numbers take the defaults.  Errors are against the full model of the same scene, solved in
+the same run with the same harmonics, samples and tolerances.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..linalg import eigen
+from ..models.structure import Structure
+from ..results import FrequencyResponse
+from .common import METHODS, RomError, RomOptions, build_rom
+
+
+@dataclass(frozen=True)
+class MethodSpec:
+    method: str
+    options: RomOptions
+
+    @property
+    def label(self) -> str:
+        if self.method == "full":
+            return "full"
+        o = self.options
+        s = f"{self.method}:{o.modes}"
+        return s + (f"+{o.tvd}tvd" if o.tvd else "")
+
+
+def parse_method(text: str, defaults: RomOptions) -> MethodSpec:
+    """'penalty:10:3' -> MethodSpec; raises RomError naming the bad part."""
+    parts = text.strip().split(":")
+    name = parts[0].lower()
+    if name not in METHODS:
+        raise RomError(f"--methods: {text!r}: unknown method {name!r}; choose from {', '.join(METHODS)}")
+    try:
+        nums = [int(p) for p in parts[1:]]
+    except ValueError:
+        raise RomError(f"--methods: {text!r}: modes and tvd must be integers (name[:modes[:tvd]])") from None
+    if len(nums) > 2 or any(v < 0 for v in nums):
+        raise RomError(f"--methods: {text!r}: expected name[:modes[:tvd]] with non-negative integers")
+    modes = nums[0] if nums else defaults.modes
+    tvd = nums[1] if len(nums) > 1 else defaults.tvd
+    return MethodSpec(name, RomOptions(modes=modes, tvd=tvd, interface_modes=defaults.interface_modes,
+                                       release_after=defaults.release_after))
+
+
+def curve_error(frf: FrequencyResponse, ref: FrequencyResponse, output: str) -> float:
+    """Largest distance of the ROM's curve from the reference curve, in the plane of
+    (omega / omega_peak, amplitude / amplitude_peak) of the reference: folds are fine."""
+    w0, a0 = ref.peak(output)
+    P = np.column_stack([ref.omega / w0, ref.amplitude(ref.outputs[output]) / a0])
+    Q = np.column_stack([frf.omega / w0, frf.amplitude(frf.outputs[output]) / a0])
+    A, B = P[:-1], P[1:]
+    AB = B - A
+    L2 = np.maximum((AB**2).sum(axis=1), 1e-300)
+
+    def dist(X, A, AB, L2):
+        t = np.clip(((X[:, None, :] - A[None]) * AB[None]).sum(-1) / L2[None], 0.0, 1.0)
+        return np.sqrt(((A[None] + t[..., None] * AB[None] - X[:, None, :]) ** 2).sum(-1)).min(axis=1)
+
+    # both ways (a ROM that misses a loop of the reference is as wrong as one that adds one)
+    C, D = Q[:-1], Q[1:] - Q[:-1]
+    d1 = dist(Q, A, AB, L2).max()
+    d2 = dist(P, C, D, np.maximum((D**2).sum(axis=1), 1e-300)).max()
+    return float(max(d1, d2))
+
+
+@dataclass
+class MethodResult:
+    spec: MethodSpec
+    size_min: int
+    size_max: int
+    full_size: int
+    offline_s: float
+    online_s: float
+    num_points: int
+    newton_iterations: int
+    freq_errors: np.ndarray  # relative errors of the first natural frequencies
+    peak_amp_err_pct: float = 0.0
+    peak_freq_err_pct: float = 0.0
+    curve_err_pct: float = 0.0
+    frf: FrequencyResponse | None = field(default=None, repr=False)
+
+    def row(self) -> dict:
+        r = {"method": self.spec.label, "size_min": self.size_min, "size_max": self.size_max,
+             "reduction_ratio": self.size_max / self.full_size, "offline_s": self.offline_s,
+             "online_s": self.online_s, "s_per_point": self.online_s / max(self.num_points, 1),
+             "points": self.num_points, "newton_iterations": self.newton_iterations,
+             "peak_amp_err_pct": self.peak_amp_err_pct, "peak_freq_err_pct": self.peak_freq_err_pct,
+             "curve_err_pct": self.curve_err_pct}
+        for i, e in enumerate(self.freq_errors):
+            r[f"nf{i + 1}_rel_err"] = float(e)
+        return r
+
+
+def compare(structure: Structure, specs: list[MethodSpec], sweep, *, output: str, num_freq: int = 9,
+            progress=None) -> list[MethodResult]:
+    """Solve the full model and every ROM of ``specs``; the first result is full order."""
+    from ..frf import compute_frf
+
+    w2, _ = eigen(structure.K_lin, structure.M, num_freq, what="full linearised model")
+    w_ref = np.sqrt(w2)
+    specs = [MethodSpec("full", RomOptions())] + [s for s in specs if s.method != "full"]
+    # every ROM first: a method that cannot be built fails before any nonlinear solve
+    models = []
+    for spec in specs:
+        if spec.method == "full":
+            models.append((structure, 0.0, np.zeros(num_freq)))
+            continue
+        model = build_rom(structure, spec.method, spec.options)
+        wr = model.natural_frequencies(num_freq)
+        fe = np.full(num_freq, np.nan)
+        fe[:wr.size] = wr / w_ref[:wr.size] - 1.0
+        models.append((model, model.offline_s, fe))
+    results = []
+    ref = None
+    for spec, (model, offline, fe) in zip(specs, models):
+        if progress:
+            progress(spec.label)
+        t0 = time.perf_counter()
+        frf = compute_frf(model, sweep)
+        online = time.perf_counter() - t0
+        sizes = frf.info["arrays"]["rom_size"]
+        res = MethodResult(spec, int(sizes.min()), int(sizes.max()), structure.num_dofs, offline, online,
+                           frf.num_points, int(frf.iterations.sum()), fe, frf=frf)
+        if ref is None:
+            ref = frf
+        else:
+            w0, a0 = ref.peak(output)
+            w1, a1 = frf.peak(output)
+            res.peak_amp_err_pct = 100.0 * (a1 / a0 - 1.0)
+            res.peak_freq_err_pct = 100.0 * (w1 / w0 - 1.0)
+            res.curve_err_pct = 100.0 * curve_error(frf, ref, output)
+        results.append(res)
+    return results
+
+
+def to_markdown(results: list[MethodResult], num_freq: int = 9) -> str:
+    head = ("| method | size | RR | offline s | online s | s/point | peak amp err % | peak freq err % "
+            "| curve err % |")
+    lines = [head, "|" + "---|" * 9]
+    for r in results:
+        size = f"{r.size_min}" if r.size_min == r.size_max else f"{r.size_min}-{r.size_max}"
+        lines.append(f"| {r.spec.label} | {size} | {r.size_max / r.full_size:.3f} | {r.offline_s:.3f} | "
+                     f"{r.online_s:.2f} | {r.online_s / max(r.num_points, 1):.4f} | {r.peak_amp_err_pct:+.4f} | "
+                     f"{r.peak_freq_err_pct:+.5f} | {r.curve_err_pct:.4f} |")
+    lines += ["", "Relative errors of the stuck natural frequencies against the full linearised model:", "",
+              "| method | " + " | ".join(f"f{i + 1}" for i in range(num_freq)) + " |",
+              "|" + "---|" * (num_freq + 1)]
+    for r in results[1:]:
+        lines.append(f"| {r.spec.label} | " + " | ".join(f"{e:.1e}" for e in r.freq_errors) + " |")
+    return "\n".join(lines) + "\n"

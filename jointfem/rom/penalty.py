@@ -1,0 +1,308 @@
+"""The paper's penalty ROM (Sec. 3, Eq. 7-14) with an adaptive active set (Sec. 4).
+
+Formulation (docs/theory.md, "Penalty ROM").  With the gaps g = G u of all contact
+components and their stiffnesses Kc, write the contact force as f(g) = f0 + Kc (g - p).
+The internal variable p is then 0 for a component that sticks the whole period from the
+unloaded position, the slider position for a slipping tangential component, and what
+makes the force vanish for a separated one.  The full model
+    M u'' + D u' + K u + G^T (f(G u) - f0) = F
+is exactly the augmented system (paper Eq. 9)
+    M u'' + D u' + K_lin u - G^T Kc p          = F          (u rows)
+    -Kc G u + Kc p + (f(G u) - f0)             = 0          (p rows: consistency)
+with K_lin = K + G^T Kc G.  Its Galerkin projection on
+    u = Phi eta + V xi + Psi p,   Psi = K_lin^-1 G^T Kc   (static modes, Eq. 11),
+with Phi the stuck vibration modes, V POD-compressed trial-vector derivatives (Eq. 12)
+and p itself as the last coordinates (T = [[Phi, V, Psi], [0, 0, I]], Eq. 13-14), keeps
+only the components of the active set A: the others are 0 and their rows are dropped
+(the index matrix B).  With every mode kept, T is square and invertible, so the ROM is
+the full model (tests/test_rom.py checks the nonlinear FRF to 1e-8).
+
+Because Psi is K_lin-orthogonal to the modes, the reduced stiffness is block diagonal:
+diag(Phi^T K_lin Phi, Kc - Kc G Psi) in (eta, p).
+
+Adaptive size: the active set is taken at each predictor from the last converged point
+(components that slipped or separated there, or whose p is not zero, or that did within the
+last ``release_after`` points: hysteresis); after each corrector every inactive component is
+checked against the friction law with its linear force; any violation enlarges the set and
+the step is redone (continuation's ``adapt`` hook).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+
+from ..contact.jenkins import SEPARATED, SLIP, JenkinsPairs
+from ..hbm.harmonics import Harmonics
+from ..hbm.residual import HBMResidual
+from ..linalg import Factorized, LinAlgError, eigen
+from ..models.structure import ContactGroup, Structure
+from .cms import trial_vector_derivatives
+from .common import ReducedModel, RomError, RomOptions
+
+
+@dataclass
+class _Group:
+    """Bookkeeping of one physical contact group inside the ROM."""
+
+    group: ContactGroup
+    first: int  # index of its first component among all J components
+    Gr: np.ndarray  # (P*m, q): gaps from the ROM coordinates
+
+
+class PenaltyROM(ReducedModel):
+    """The offline part: modes, TVDs, static modes and the augmented reduced matrices."""
+
+    def __init__(self, structure: Structure, options: RomOptions):
+        if not structure.contacts:
+            raise RomError("penalty: the model has no contact pairs")
+        self.options = options
+        n = structure.num_dofs
+        Kl = structure.K_lin
+        w2, Phi = eigen(Kl, structure.M, options.modes, what="penalty: stuck structure")
+        V, sv = trial_vector_derivatives(structure, Phi, w2, options.tvd)
+        G = sp.vstack([g.gap for g in structure.contacts]).tocsr()
+        kc = np.concatenate([g.pairs.stiffness.ravel() for g in structure.contacts])
+        try:
+            Psi = Factorized(Kl, what="penalty: K_lin").solve(G.T.toarray() * kc)  # (n, J)
+        except LinAlgError as exc:
+            raise RomError(str(exc)) from exc
+        self.num_modes, self.num_tvd, self.num_comp = Phi.shape[1], V.shape[1], kc.size
+        Tu = np.hstack([Phi, V, Psi])
+        q = Tu.shape[1]
+        self.p_slots = np.arange(q - kc.size, q)
+        S = np.zeros((kc.size, q))
+        S[:, self.p_slots] = np.eye(kc.size)
+        GT = G @ Tu
+        KcGT = kc[:, None] * GT
+        self.K = Tu.T @ (Kl @ Tu) - GT.T @ (kc[:, None] * S) - S.T @ KcGT + S.T @ (kc[:, None] * S)
+        self.K = 0.5 * (self.K + self.K.T)
+        self.M = Tu.T @ (structure.M @ Tu)
+        self.D = Tu.T @ (structure.D @ Tu)
+        self.kc = kc
+        self.groups, first = [], 0
+        for g in structure.contacts:
+            rows = g.pairs.num_pairs * g.pairs.num_comp
+            self.groups.append(_Group(g, first, GT[first:first + rows]))
+            first += rows
+        self.full = structure
+        self.T = Tu
+        self._cache: dict[bytes, Structure] = {}
+        stuck = self.structure_for(np.zeros(kc.size, bool))
+        super().__init__("penalty", stuck, Tu, n, info={"modes": self.num_modes, "tvd": self.num_tvd,
+                                                         "static_modes_available": int(kc.size),
+                                                         "tvd_singular_values": sv[:10].tolist()})
+
+    # --- the ROM for one active set -------------------------------------------------------
+    @property
+    def size(self) -> int:
+        """Size with no active internal variable (all stuck): modes + TVDs."""
+        return self.num_modes + self.num_tvd
+
+    def size_of(self, mask: np.ndarray) -> int:
+        return self.num_modes + self.num_tvd + int(np.count_nonzero(mask))
+
+    def structure_for(self, mask: np.ndarray) -> Structure:
+        """The reduced Structure with active components ``mask`` (J,); inactive p pinned to 0."""
+        key = np.asarray(mask, bool).tobytes()
+        if key in self._cache:
+            return self._cache[key]
+        K, M, D = self.K.copy(), self.M.copy(), self.D.copy()
+        off = self.p_slots[~np.asarray(mask, bool)]
+        for A in (K, M, D):
+            A[off, :] = 0.0
+            A[:, off] = 0.0
+        K[off, off] = self.kc[~np.asarray(mask, bool)]  # p = 0 at the stiffness scale of the component
+        q = K.shape[0]
+        contacts = []
+        for gr in self.groups:
+            g = gr.group
+            P, m = g.pairs.num_pairs, g.pairs.num_comp
+            act = np.asarray(mask[gr.first:gr.first + P * m], bool).reshape(P, m)
+            sel = np.flatnonzero(act.any(axis=1))
+            if sel.size == 0:
+                continue
+            rows = (sel[:, None] * m + np.arange(m)).ravel()
+            load = np.zeros((rows.size, q))
+            comp = gr.first + rows
+            on = act[sel].ravel()
+            load[np.flatnonzero(on), self.p_slots[comp[on]]] = 1.0
+            pr = g.pairs
+            sub = JenkinsPairs(kt=pr.kt[sel], kn=pr.kn[sel], mu=pr.mu[sel], N0=pr.N0[sel],
+                               num_tangential=pr.num_tangential, has_normal=pr.has_normal)
+            contacts.append(ContactGroup(sub, sp.csr_matrix(gr.Gr[rows]), names=tuple(np.array(g.names)[sel])
+                                         if g.names else (), load=sp.csr_matrix(load)))
+        fs = self.full
+        fc, fsin = self.T.T @ fs.fc, self.T.T @ fs.fs
+        fc[off] = 0.0  # a pinned row says p = 0, nothing else
+        fsin[off] = 0.0
+        s = Structure(K=sp.csr_matrix(K), M=sp.csr_matrix(M), D=sp.csr_matrix(D), fc=fc,
+                      fs=fsin, contacts=tuple(contacts),
+                      dof_names=tuple(f"penalty.{i}" for i in range(q)),
+                      outputs={nm: self.T[dof].copy() for nm, dof in fs.outputs.items()},
+                      info={"kind": "rom:penalty", "active": int(np.count_nonzero(mask))})
+        self._cache[key] = s
+        return s
+
+    def natural_frequencies(self, num: int) -> np.ndarray:
+        """Stuck natural frequencies (no active component: modes and TVDs only), rad/s."""
+        r = self.num_modes + self.num_tvd
+        w2, _ = eigen(self.K[:r, :r], self.M[:r, :r], min(num, r), what="penalty ROM")
+        return np.sqrt(np.clip(w2, 0.0, None))
+
+
+@dataclass
+class _Pair:
+    """Where one physical pair's components live: group index, pair index, component range."""
+
+    group: int
+    pair: int
+    comps: np.ndarray
+
+
+class PenaltyProblem:
+    """The online part: HBM of the penalty ROM whose active set follows the branch."""
+
+    def __init__(self, rom: PenaltyROM, harmonics: Harmonics, *, friction_tol: float = 1e-9):
+        self.rom, self.harmonics = rom, harmonics
+        self.adapt = self
+        self.q = rom.K.shape[0]
+        self.num_unknowns = self.q * harmonics.num_hc
+        self.mask = np.zeros(rom.num_comp, bool)
+        self.history: list[np.ndarray] = []  # per accepted point: components that slipped/separated/p != 0
+        self.friction_tol = friction_tol
+        self._hbm: dict[bytes, HBMResidual] = {}
+        self.pairs = []
+        for gi, gr in enumerate(rom.groups):
+            P, m = gr.group.pairs.num_pairs, gr.group.pairs.num_comp
+            for p in range(P):
+                self.pairs.append(_Pair(gi, p, gr.first + p * m + np.arange(m)))
+        self.num_pairs = len(self.pairs)
+        self.events = {"activated": 0, "released": 0, "redone_steps": 0}
+
+    # --- evaluation ------------------------------------------------------------------------
+    @property
+    def structure(self) -> Structure:
+        return self.rom.structure_for(self.mask)
+
+    @property
+    def size(self) -> int:
+        return self.rom.size_of(self.mask)
+
+    def hbm(self) -> HBMResidual:
+        key = self.mask.tobytes()
+        if key not in self._hbm:
+            self._hbm[key] = HBMResidual(self.structure, self.harmonics)
+        return self._hbm[key]
+
+    def evaluate(self, U, omega, *, jacobian=True):
+        return self.hbm().evaluate(U, omega, jacobian=jacobian)
+
+    def linear_solution(self, omega):
+        return self.hbm().linear_solution(omega)
+
+    def _gap_time(self, U):
+        """Gap samples of every group from the ROM coordinates: list of (N, P, m)."""
+        h = self.harmonics
+        Z = U.reshape(h.num_hc, self.q)
+        out = []
+        for gr in self.rom.groups:
+            P, m = gr.group.pairs.num_pairs, gr.group.pairs.num_comp
+            out.append(h.to_time((Z @ gr.Gr.T).reshape(h.num_hc, P, m)))
+        return out
+
+    def states(self, U, omega, contact=None) -> np.ndarray:
+        """Contact state per sample and physical pair (N, num_pairs): inactive pairs stick."""
+        h = self.harmonics
+        st = np.zeros((h.N, self.num_pairs), np.int8)
+        if contact is None:
+            contact = self.evaluate(U, omega, jacobian=False).contact
+        for res, idx in zip(contact, self._active_pair_index()):
+            st[:, idx] = res.state_t
+        return st
+
+    def _active_pair_index(self):
+        """Global pair indices of the pairs in each contact group of the current ROM structure."""
+        out, base = [], 0
+        for gr in self.rom.groups:
+            P, m = gr.group.pairs.num_pairs, gr.group.pairs.num_comp
+            act = self.mask[gr.first:gr.first + P * m].reshape(P, m).any(axis=1)
+            if act.any():
+                out.append(base + np.flatnonzero(act))
+            base += P
+        return out
+
+    # --- the active set ---------------------------------------------------------------------
+    def _busy(self, U, omega) -> np.ndarray:
+        """Components that must be active at a converged point: slip/separation in the AFT of
+        active pairs, or a non-zero internal variable (a shakedown offset)."""
+        busy = np.zeros(self.rom.num_comp, bool)
+        st = self.states(U, omega)
+        Z = U.reshape(self.harmonics.num_hc, self.q)
+        p = np.abs(Z[:, self.rom.p_slots]).max(axis=0)
+        gscale = max(np.abs(np.concatenate([Z @ gr.Gr.T for gr in self.rom.groups], axis=1)).max(), 1e-300)
+        for k, pr in enumerate(self.pairs):
+            nt = self.rom.groups[pr.group].group.pairs.num_tangential
+            slip = np.any(st[:, k] == SLIP)
+            sep = np.any(st[:, k] == SEPARATED)
+            if slip or sep:
+                busy[pr.comps[:nt]] = True
+            if sep and pr.comps.size > nt:
+                busy[pr.comps[nt:]] = True
+            big = p[pr.comps] > 1e-8 * gscale
+            busy[pr.comps] |= big & self.mask[pr.comps]
+        return busy
+
+    def violations(self, U) -> np.ndarray:
+        """Inactive components whose linear force breaks the law at some sample: |t| > mu N or N < 0."""
+        need = np.zeros(self.rom.num_comp, bool)
+        for gr, g_t in zip(self.rom.groups, self._gap_time(U)):
+            pr = gr.group.pairs
+            P, m, nt = pr.num_pairs, pr.num_comp, pr.num_tangential
+            act = self.mask[gr.first:gr.first + P * m].reshape(P, m)
+            N = pr.N0[None, :] + (pr.kn[None, :] * g_t[:, :, -1] if pr.has_normal else 0.0)
+            sep = (N < -self.friction_tol * np.maximum(pr.N0, 1e-300)).any(axis=0)
+            t = pr.kt[None, :] * np.linalg.norm(g_t[:, :, :nt], axis=2)
+            slip = (t > pr.mu * np.maximum(N, 0.0) + self.friction_tol * np.maximum(pr.mu * pr.N0, 1e-300)).any(axis=0)
+            bad_t = (slip | sep) & ~act[:, :nt].all(axis=1)
+            new = np.zeros((P, m), bool)
+            new[bad_t, :nt] = True
+            if pr.has_normal:
+                bad_n = sep & ~act[:, -1]
+                new[bad_n, :] = True
+            need[gr.first:gr.first + P * m] = new.ravel() & ~act.ravel()
+        return need
+
+    def after_converge(self, U, omega) -> bool:
+        """Continuation hook: enlarge the set if an inactive component breaks the law (redo the step)."""
+        need = self.violations(U)
+        if need.any():
+            self.mask = self.mask | need
+            self.events["activated"] += int(need.sum())
+            self.events["redone_steps"] += 1
+            return True
+        self.history.append(self._busy(U, omega))
+        return False
+
+    def before_step(self, U, omega):
+        """Continuation hook: the active set for the next step.  Returns U with released p zeroed, or None."""
+        if not self.history:
+            return None
+        recent = np.logical_or.reduce(self.history[-self.rom.options.release_after:])
+        new = self.mask & recent | self.history[-1]
+        if np.array_equal(new, self.mask):
+            return None
+        released = self.mask & ~new
+        self.events["released"] += int(released.sum())
+        self.mask = new
+        U = U.reshape(self.harmonics.num_hc, self.q).copy()
+        U[:, self.rom.p_slots[released]] = 0.0
+        return U.ravel()
+
+    def scales(self, omega_start, omega_end):
+        """x scale per ROM coordinate (frf.compute_rom_scales on the stuck ROM)."""
+        from ..frf import compute_rom_scales
+
+        return compute_rom_scales(self.rom.structure_for(np.zeros(self.rom.num_comp, bool)), self.rom.T,
+                                  omega_start, omega_end, displacements=self.rom.p_slots)

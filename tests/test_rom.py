@@ -1,0 +1,200 @@
+"""Reduced-order models: the penalty ROM against the full model, the CMS family, the active set."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+from jointfem.contact.jenkins import compute_aft
+from jointfem.continuation.arclength import ContinuationOptions, solve_newton
+from jointfem.frf import SweepOptions, compute_frf
+from jointfem.hbm.harmonics import Harmonics
+from jointfem.hbm.residual import HBMResidual
+from jointfem.linalg import eigen
+from jointfem.models.beam2d import Beam2DSpec, create_beam2d
+from jointfem.models.structure import ContactGroup, Structure
+from jointfem.contact.jenkins import JenkinsPairs
+from jointfem.rom import RomError, RomOptions, build_rom
+from jointfem.rom.penalty import PenaltyProblem
+
+RAYLEIGH = dict(damping="rayleigh", rayleigh_alpha=4.391, rayleigh_beta=4.368e-6)
+
+
+def beam(force=3.0, elements=20):
+    return create_beam2d(Beam2DSpec(elements=elements, force=force, **RAYLEIGH))
+
+
+def test_penalty_stuck_frequencies_and_size():
+    """All stuck: the penalty ROM with r modes has size r and the first r frequencies of the full model."""
+    s = create_beam2d(Beam2DSpec(**RAYLEIGH))
+    w2, _ = eigen(s.K_lin, s.M, 20)
+    for r in (5, 20):
+        rom = build_rom(s, "penalty", RomOptions(modes=r))
+        assert rom.size == r
+        np.testing.assert_allclose(rom.natural_frequencies(r), np.sqrt(w2[:r]), rtol=1e-8)
+
+
+def test_penalty_linear_frf_is_modal_truncation():
+    """Tiny forcing: the ROM's HBM FRF equals its linear modal-truncation FRF, which tends to the full
+    linear FRF as modes are added (the truncation error shrinks monotonically)."""
+    s = create_beam2d(Beam2DSpec(force=1e-6, **RAYLEIGH))
+    out = s.outputs["b1.mid.uy"]
+    w = np.array([1600.0, 1696.0, 1750.0])
+    X_full = s.linear_response(w)[:, out]
+    errs = []
+    for r in (4, 10, 20, 40):
+        rom = build_rom(s, "penalty", RomOptions(modes=r))
+        frf = compute_frf(rom, SweepOptions(1570.0, 1760.0, Harmonics(1, 16)))
+        Xr = rom.structure.linear_response(frf.omega) @ rom.structure.outputs["b1.mid.uy"]
+        np.testing.assert_allclose(frf.amplitude(frf.outputs["b1.mid.uy"]), np.abs(Xr), rtol=1e-8)
+        Xw = rom.structure.linear_response(w) @ rom.structure.outputs["b1.mid.uy"]
+        errs.append(np.abs(Xw - X_full).max() / np.abs(X_full).max())
+    # not monotone beyond 20 modes: the Rayleigh damping (on K, not K_lin) couples the modes
+    assert errs[2] < errs[1] < errs[0] and max(errs[1:]) < 1e-4, errs
+
+
+def _rom_coordinates(rom, hbm_full, U, omega):
+    """Full solution -> penalty ROM coordinates (complete modal basis): p from consistency."""
+    h = hbm_full.harmonics
+    n, nh = rom.full.num_dofs, h.num_hc
+    Uf = U.reshape(nh, n)
+    g = hbm_full.structure.contacts[0]
+    G = hbm_full.gaps(U)[0]
+    res = compute_aft(g.pairs, G, h, jacobian=False)
+    kc = g.pairs.stiffness
+    f0 = np.zeros_like(G)
+    f0[0] = g.pairs.preload  # the preload is static: harmonic 0 only
+    p = (G - (res.F - f0) / kc).reshape(nh, -1)
+    Phi = rom.T[:, :rom.num_modes]
+    eta = (Uf - p @ rom.T[:, rom.p_slots].T) @ (rom.full.M @ Phi)
+    return np.hstack([eta, p]).ravel()
+
+
+def test_penalty_complete_basis_is_the_full_model():
+    """With every mode kept, T is square and invertible: the penalty ROM is the full model, nonlinear
+    (separation level, all internal variables active), to 1e-8 in the recovered displacements."""
+    s = beam(3.0)
+    h = Harmonics(3, 128)
+    full = HBMResidual(s, h)
+    rom = build_rom(s, "penalty", RomOptions(modes=s.num_dofs))
+    prob = PenaltyProblem(rom, h)
+    prob.mask[:] = True
+    x_scale = np.ones(full.num_unknowns)
+    for omega, opens in ((1700.0, True), (1640.0, False)):  # at 1700 rad/s it is open a quarter period
+        U, _ = solve_newton(lambda U, w: (lambda e: (e.R, e.J, e.dR_domega))(full.evaluate(U, w)),
+                            full.linear_solution(omega), omega, x_scale=x_scale, r_scale=3.0)
+        z = _rom_coordinates(rom, full, U, omega)
+        ev = prob.evaluate(z, omega, jacobian=False)
+        assert np.any(ev.contact[0].state_t == 2) == opens
+        # (the residual of this mapped point is not a test: the stiffest axial mode, 2e15 N/m,
+        # turns a 1e-16 m round-off in its coordinate into 0.2 N; Newton removes it)
+        z2, _ = solve_newton(lambda z, w: (lambda e: (e.R, e.J, e.dR_domega))(prob.evaluate(z, w)),
+                             z, omega, x_scale=np.ones(z.size), r_scale=3.0)
+        u_rom = (z2.reshape(h.num_hc, -1) @ rom.T.T).ravel()
+        assert np.abs(u_rom - U).max() < 1e-8 * np.abs(U).max()
+
+
+def test_penalty_jacobian_matches_finite_differences():
+    s = beam(3.0)
+    h = Harmonics(3, 64)
+    rom = build_rom(s, "penalty", RomOptions(modes=8, tvd=2))
+    prob = PenaltyProblem(rom, h)
+    prob.mask[:] = [True, False, True, True, False, False]  # pair 0 tangential, pair 1 both: mixed
+    rng = np.random.default_rng(3)
+    U = prob.linear_solution(1690.0) * 40 + 1e-6 * rng.standard_normal(prob.num_unknowns)
+    ev = prob.evaluate(U, 1690.0)
+    J = np.asarray(ev.J)
+    eps = 1e-7 * np.abs(U).max()
+    cols = rng.choice(U.size, 25, replace=False)
+    for c in cols:
+        dU = np.zeros_like(U)
+        dU[c] = eps
+        fd = (prob.evaluate(U + dU, 1690.0, jacobian=False).R - prob.evaluate(U - dU, 1690.0, jacobian=False).R) / (2 * eps)
+        assert np.abs(fd - J[:, c]).max() <= 1e-6 * np.abs(J).max() + 1e-6 * np.abs(fd).max()
+
+
+def _check_law_at_inactive(frf, rom, h):
+    """Independent check: at every point, every inactive component's linear force obeys the law."""
+    pr = rom.groups[0].group.pairs
+    Gr = rom.groups[0].Gr
+    for U, act in zip(frf.U, frf.info["arrays"]["active"]):
+        g = h.to_time((U.reshape(h.num_hc, -1) @ Gr.T).reshape(h.num_hc, pr.num_pairs, 2))  # (N, P, 2)
+        N = pr.N0 + pr.kn * g[:, :, 1]
+        act = act.reshape(pr.num_pairs, 2)
+        for p in range(pr.num_pairs):
+            if not act[p, 0]:
+                assert np.all(pr.kt[p] * np.abs(g[:, p, 0]) <= pr.mu[p] * N[:, p] * (1 + 1e-8))
+            if not act[p, 1]:
+                assert np.all(N[:, p] > -1e-8 * pr.N0[p])
+
+
+def test_active_set_grows_when_an_inactive_pair_breaks_the_law():
+    """A sweep into stick-slip and separation from an all-stuck start: steps are redone with a larger
+    set, no converged point violates the law at an inactive component, and the FRF is close to full."""
+    s = beam(3.0)
+    h = Harmonics(3, 1024)  # at N = 128 the 10-mode ROM stalls on a fold at a kink near 1690 rad/s
+    opts = SweepOptions(1570.0, 1760.0, h, ContinuationOptions(ds_max=0.05))
+    rom = build_rom(s, "penalty", RomOptions(modes=10))
+    frf = compute_frf(rom, opts)
+    ev = frf.info["active_set_events"]
+    assert ev["redone_steps"] >= 1 and ev["activated"] >= 2
+    sizes = frf.info["arrays"]["rom_size"]
+    assert sizes[0] == 10 and sizes.max() > 10
+    _check_law_at_inactive(frf, rom, h)
+    ref = compute_frf(s, opts)
+    w0, a0 = ref.peak("b1.mid.uy")
+    w1, a1 = frf.peak("b1.mid.uy")
+    assert abs(a1 / a0 - 1) < 0.01 and abs(w1 / w0 - 1) < 0.002
+
+
+def test_violation_check_flags_an_inactive_pair():
+    """Directly: a response too large for the stuck springs makes violations() name its components."""
+    s = beam(3.0)
+    h = Harmonics(1, 32)
+    rom = build_rom(s, "penalty", RomOptions(modes=6))
+    prob = PenaltyProblem(rom, h)
+    U = prob.linear_solution(1690.0)
+    assert not prob.violations(U * 1e-3).any()
+    need = prob.violations(U * 10)
+    assert need.any()
+    assert prob.after_converge(U * 10, 1690.0) is True and prob.mask[need].all()
+
+
+@pytest.mark.parametrize("method", ["cb", "rubin", "macneal", "dcb", "jim", "tvd"])
+def test_cms_frequencies_converge(method):
+    """Each reference ROM's stuck frequencies approach the full model's as modes are added."""
+    s = create_beam2d(Beam2DSpec(**RAYLEIGH))
+    w_ref = np.sqrt(eigen(s.K_lin, s.M, 9)[0])
+    errs = []
+    for modes in (12, 20, 40):
+        rom = build_rom(s, method, RomOptions(modes=modes, tvd=3 if method == "tvd" else 0))
+        errs.append(np.abs(rom.natural_frequencies(9) / w_ref - 1).max())
+    assert errs[-1] < 1e-3 and errs[-1] <= errs[0], errs
+
+
+def test_cb_with_every_mode_is_exact():
+    s = beam(elements=6)
+    n_int = s.num_dofs - 18  # 3 pairs x 2 nodes x 3 DOFs on the boundary
+    rom = build_rom(s, "cb", RomOptions(modes=n_int))
+    assert rom.size == s.num_dofs
+    w_ref = np.sqrt(eigen(s.K_lin, s.M, 9)[0])
+    np.testing.assert_allclose(rom.natural_frequencies(9), w_ref, rtol=1e-9)
+
+
+def test_reductions_refuse_what_they_cannot_do():
+    s = beam()
+    lumped = Structure(K=sp.csr_matrix(np.array([[2.0, -1], [-1, 2]])), M=sp.identity(2, format="csr"),
+                       D=sp.csr_matrix((2, 2)), fc=np.array([1.0, 0]), fs=np.zeros(2),
+                       contacts=(ContactGroup(JenkinsPairs(kt=1.0, kn=1.0, mu=0.1, N0=1.0),
+                                              sp.csr_matrix(np.array([[1.0, -1.0]]))),))
+    with pytest.raises(RomError, match="no substructures"):
+        build_rom(lumped, "cb")
+    free = Structure(K=sp.csr_matrix((2, 2)), M=sp.identity(2, format="csr"), D=sp.csr_matrix((2, 2)),
+                     fc=np.array([1.0, 0]), fs=np.zeros(2), contacts=lumped.contacts,
+                     substructure=np.array([0, 1]))
+    with pytest.raises(RomError, match="rigid-body|singular"):
+        build_rom(free, "rubin", RomOptions(modes=0))
+    with pytest.raises(RomError, match="modes"):
+        build_rom(s, "penalty", RomOptions(modes=-1))
+    with pytest.raises(RomError, match="unknown"):
+        build_rom(s, "guyan")
