@@ -76,6 +76,8 @@ def plot_compare(results, output: str, frf_path: Path, pareto_path: Path, *, tit
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(7.5, 4.8))
     for i, r in enumerate(results):
+        if r.failure:
+            continue
         f = r.frf
         ax.plot(f.omega / (2 * np.pi), f.amplitude(f.outputs[output]), "k-" if i == 0 else "-",
                 lw=2.2 if i == 0 else 1.1, label=f"{r.spec.label} (size {r.size_max})", zorder=1 if i == 0 else 2)
@@ -91,6 +93,8 @@ def plot_compare(results, output: str, frf_path: Path, pareto_path: Path, *, tit
 
     fig, ax = plt.subplots(figsize=(6.5, 4.5))
     for r in results[1:]:
+        if r.failure:
+            continue
         err = max(r.curve_err_pct, 1e-6)
         ax.loglog(r.online_s, err, "o")
         ax.annotate(f"{r.spec.label} ({r.size_max})", (r.online_s, err), fontsize=7, xytext=(4, 3),

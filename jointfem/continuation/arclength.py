@@ -115,6 +115,13 @@ def _scaled(fun, x_scale, lam_scale, r_scale):
     return g
 
 
+def _roundoff(A, z):
+    """Per row, the round-off of evaluating A z: 32 eps sum_j |A_ij z_j|.  A residual below it is
+    converged whatever the tolerance (a stiff ROM coordinate, 2e15 N/m, puts this above 1e-10)."""
+    Az = (abs(A) @ np.abs(z)) if sp.issparse(A) else np.abs(A) @ np.abs(z)
+    return 32.0 * np.finfo(float).eps * np.asarray(Az).ravel()
+
+
 def _damped_newton(F, z0, opts: "NewtonOptions", what: str, lam_of):
     """Newton with backtracking on ||r||_2.  F(z) -> (r, A).
 
@@ -131,7 +138,7 @@ def _damped_newton(F, z0, opts: "NewtonOptions", what: str, lam_of):
     for it in range(opts.max_iter + 1):
         if not np.isfinite(res):
             break
-        if res <= opts.tol:
+        if res <= opts.tol or (r.size and np.all(np.abs(r) <= _roundoff(A, z))):
             return z, it, res
         if res < 0.5 * best_res:
             best_res, best_z, best_it = res, z, it
@@ -275,7 +282,7 @@ def continue_branch(fun: Callable, x0: np.ndarray, lam0: float, lam_end: float, 
             # A true corner of the branch (slip onset on a sampled period is one) turns the
             # tangent however short the step; only steps longer than turn_ds_floor are refused.
             jump = float(np.linalg.norm(np.append(y_new - y, mu_new - mu)))
-            if not changed and jump > opts.max_jump * ds:
+            if not changed and jump > opts.max_jump * ds and ds > opts.turn_ds_floor:
                 # the hyperplane met the branch far from the predictor: another part of it
                 failure = f"corrector landed {jump / ds:.1f} step lengths away"
             elif float(t_new @ t) < cos_max and ds > opts.turn_ds_floor:

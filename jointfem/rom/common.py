@@ -47,7 +47,9 @@ class ReducedModel:
     def natural_frequencies(self, num: int) -> np.ndarray:
         """The lowest ``num`` stuck natural frequencies of the ROM, rad/s."""
         s = self.structure
-        w2, _ = eigen(s.K_lin, s.M, min(num, s.num_dofs), what=f"{self.method} ROM")
+        # MacNeal's reduced mass has the rank of its modes: no more finite frequencies than that
+        rank = np.linalg.matrix_rank(s.M.toarray())
+        w2, _ = eigen(s.K_lin, s.M, min(num, rank), what=f"{self.method} ROM")
         return np.sqrt(np.clip(w2, 0.0, None))
 
 

@@ -11,6 +11,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..contact.jenkins import ContactError
+from ..continuation.arclength import ContinuationError, ConvergenceError
 from ..linalg import eigen
 from ..models.structure import Structure
 from ..results import FrequencyResponse
@@ -50,24 +52,21 @@ def parse_method(text: str, defaults: RomOptions) -> MethodSpec:
 
 
 def curve_error(frf: FrequencyResponse, ref: FrequencyResponse, output: str) -> float:
-    """Largest distance of the ROM's curve from the reference curve, in the plane of
-    (omega / omega_peak, amplitude / amplitude_peak) of the reference: folds are fine."""
+    """Largest distance of the ROM's points from the reference curve (a polyline through its
+    points), in the plane of (omega / omega_peak, amplitude / amplitude_peak) of the reference.
+
+    The ROM's points are solutions, the reference is dense, so this measures the ROM and not the
+    chords between sparse points; a fold or loop is fine.  (A ROM that misses a loop of the
+    reference entirely shows up in the peak errors, not here.)
+    """
     w0, a0 = ref.peak(output)
     P = np.column_stack([ref.omega / w0, ref.amplitude(ref.outputs[output]) / a0])
     Q = np.column_stack([frf.omega / w0, frf.amplitude(frf.outputs[output]) / a0])
-    A, B = P[:-1], P[1:]
-    AB = B - A
+    A, AB = P[:-1], P[1:] - P[:-1]
     L2 = np.maximum((AB**2).sum(axis=1), 1e-300)
-
-    def dist(X, A, AB, L2):
-        t = np.clip(((X[:, None, :] - A[None]) * AB[None]).sum(-1) / L2[None], 0.0, 1.0)
-        return np.sqrt(((A[None] + t[..., None] * AB[None] - X[:, None, :]) ** 2).sum(-1)).min(axis=1)
-
-    # both ways (a ROM that misses a loop of the reference is as wrong as one that adds one)
-    C, D = Q[:-1], Q[1:] - Q[:-1]
-    d1 = dist(Q, A, AB, L2).max()
-    d2 = dist(P, C, D, np.maximum((D**2).sum(axis=1), 1e-300)).max()
-    return float(max(d1, d2))
+    t = np.clip(((Q[:, None, :] - A[None]) * AB[None]).sum(-1) / L2[None], 0.0, 1.0)
+    d = np.sqrt(((A[None] + t[..., None] * AB[None] - Q[:, None, :]) ** 2).sum(-1)).min(axis=1)
+    return float(d.max())
 
 
 @dataclass
@@ -85,6 +84,7 @@ class MethodResult:
     peak_freq_err_pct: float = 0.0
     curve_err_pct: float = 0.0
     frf: FrequencyResponse | None = field(default=None, repr=False)
+    failure: str = ""  # why the ROM's sweep stopped (then no FRF errors)
 
     def row(self) -> dict:
         r = {"method": self.spec.label, "size_min": self.size_min, "size_max": self.size_max,
@@ -92,7 +92,10 @@ class MethodResult:
              "online_s": self.online_s, "s_per_point": self.online_s / max(self.num_points, 1),
              "points": self.num_points, "newton_iterations": self.newton_iterations,
              "peak_amp_err_pct": self.peak_amp_err_pct, "peak_freq_err_pct": self.peak_freq_err_pct,
-             "curve_err_pct": self.curve_err_pct}
+             "curve_err_pct": self.curve_err_pct, "failure": self.failure}
+        if self.failure:
+            for k in ("peak_amp_err_pct", "peak_freq_err_pct", "curve_err_pct"):
+                r[k] = float("nan")
         for i, e in enumerate(self.freq_errors):
             r[f"nf{i + 1}_rel_err"] = float(e)
         return r
@@ -123,7 +126,15 @@ def compare(structure: Structure, specs: list[MethodSpec], sweep, *, output: str
         if progress:
             progress(spec.label)
         t0 = time.perf_counter()
-        frf = compute_frf(model, sweep)
+        try:
+            frf = compute_frf(model, sweep)
+        except (ContinuationError, ConvergenceError, ContactError) as exc:
+            if ref is None:
+                raise  # no reference, no comparison
+            size = model.size
+            results.append(MethodResult(spec, size, size, structure.num_dofs, offline, time.perf_counter() - t0,
+                                        0, 0, fe, failure=str(exc)))
+            continue
         online = time.perf_counter() - t0
         sizes = frf.info["arrays"]["rom_size"]
         res = MethodResult(spec, int(sizes.min()), int(sizes.max()), structure.num_dofs, offline, online,
@@ -146,6 +157,10 @@ def to_markdown(results: list[MethodResult], num_freq: int = 9) -> str:
     lines = [head, "|" + "---|" * 9]
     for r in results:
         size = f"{r.size_min}" if r.size_min == r.size_max else f"{r.size_min}-{r.size_max}"
+        if r.failure:
+            lines.append(f"| {r.spec.label} | {size} | {r.size_max / r.full_size:.3f} | {r.offline_s:.3f} | "
+                         f"failed after {r.online_s:.2f} s: {r.failure} | | | | |")
+            continue
         lines.append(f"| {r.spec.label} | {size} | {r.size_max / r.full_size:.3f} | {r.offline_s:.3f} | "
                      f"{r.online_s:.2f} | {r.online_s / max(r.num_points, 1):.4f} | {r.peak_amp_err_pct:+.4f} | "
                      f"{r.peak_freq_err_pct:+.5f} | {r.curve_err_pct:.4f} |")
