@@ -2,7 +2,7 @@
 PY := .venv/bin/python
 MPIRUN := mpirun $(if $(filter 0,$(shell id -u)),--allow-run-as-root) --oversubscribe
 
-.PHONY: setup demo test test-fast bench clean
+.PHONY: setup demo test test-fast bench paper clean
 
 setup:
 	@bash tools/setup.sh
@@ -16,6 +16,9 @@ test: setup
 
 bench: setup
 	$(PY) benchmarks/bench.py --out docs/benchmarks.md
+
+paper: setup
+	$(PY) demos/paper_figures.py --out docs
 
 clean:
 	rm -rf results .pytest_cache

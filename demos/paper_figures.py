@@ -29,7 +29,7 @@ import numpy as np
 from jointfem.cli import sweep_options
 from jointfem.contact.jenkins import SEPARATED, SLIP
 from jointfem.linalg import eigen
-from jointfem.plots import _pyplot, plot_compare
+from jointfem.plots import _pyplot, finish, plot_compare
 from jointfem.rom import RomOptions, build_rom
 from jointfem.rom.compare import MethodSpec, compare, to_markdown
 from jointfem.scene import create_structure, load_scene
@@ -64,12 +64,7 @@ def fig5(structure, img: Path) -> str:
         ax.semilogy(np.arange(1, 10), np.maximum(np.abs(e), 1e-16), "o-", ms=3, label=label)
     ax.set_xlabel("mode")
     ax.set_ylabel("|relative error| of the natural frequency")
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=7, ncol=2)
-    ax.set_title("jointed beam, all stuck (Fig. 5 analogue)")
-    fig.tight_layout()
-    fig.savefig(img / "fig5_nf_errors.png", dpi=120)
-    plt.close(fig)
+    finish(fig, ax, img / "fig5_nf_errors.png", title="jointed beam, all stuck (Fig. 5 analogue)", legend_size=7)
     head = ("| method | size | RR | " + " | ".join(f"f{i}" for i in range(1, 10)) + " | max |\n|"
             + "---|" * 13 + "\n")
     freqs = ", ".join(f"{w / (2 * np.pi):.2f}" for w in w_ref)
@@ -152,23 +147,18 @@ def convergence(structure, sweep, img: Path, quick: bool) -> str:
         ax.semilogy([r.size_max for r in rs], [max(abs(r.peak_amp_err_pct), 1e-5) for r in rs], "o-", label=method)
     ax.set_xlabel("largest ROM size along the branch")
     ax.set_ylabel("|peak amplitude error| [%]")
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=7)
-    ax.set_title("jointed beam, 3.0 N: convergence against full order")
-    fig.tight_layout()
-    fig.savefig(img / "convergence.png", dpi=120)
-    plt.close(fig)
+    finish(fig, ax, img / "convergence.png", title="jointed beam, 3.0 N: convergence against full order",
+           legend_size=7)
     lines = ["| method | size | peak amp err % | peak freq err % | curve err % | max NF err (f1-f9, those it has) "
              "| online s |",
              "|---|---|---|---|---|---|---|"]
     for r in results[1:]:
-        size = f"{r.size_min}" if r.size_min == r.size_max else f"{r.size_min}-{r.size_max}"
+        nf = f"{np.nanmax(np.abs(r.freq_errors)):.1e} | {r.online_s:.2f} |"
         if r.failure:
-            lines.append(f"| {r.spec.label} | {size} | sweep failed: {r.failure} | | | "
-                         f"{np.nanmax(np.abs(r.freq_errors)):.1e} | {r.online_s:.2f} |")
+            lines.append(f"| {r.spec.label} | {r.size_text} | sweep failed: {r.failure} | | | {nf}")
             continue
-        lines.append(f"| {r.spec.label} | {size} | {r.peak_amp_err_pct:+.4f} | {r.peak_freq_err_pct:+.5f} | "
-                     f"{r.curve_err_pct:.4f} | {np.nanmax(np.abs(r.freq_errors)):.1e} | {r.online_s:.2f} |")
+        lines.append(f"| {r.spec.label} | {r.size_text} | {r.peak_amp_err_pct:+.4f} | {r.peak_freq_err_pct:+.5f} | "
+                     f"{r.curve_err_pct:.4f} | {nf}")
     return "\n".join(lines) + "\n"
 
 

@@ -17,6 +17,18 @@ def _pyplot():
     return plt
 
 
+def finish(fig, ax, path: Path, *, title: str = "", legend_size: int = 8) -> Path:
+    """Grid, legend and title on ``ax``, then save ``fig`` as a PNG and close it."""
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=legend_size)
+    if title:
+        ax.set_title(title)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    _pyplot().close(fig)
+    return Path(path)
+
+
 def plot_frf(frf: FrequencyResponse, path: Path, *, title: str = "") -> Path:
     """FRF of every output (first-harmonic amplitude and half peak-to-peak, m, against Hz), and
     below it the share of contact pairs sticking, slipping and separated along the branch."""
@@ -61,14 +73,7 @@ def plot_levels(curves: list[tuple[str, FrequencyResponse]], output: str, path: 
     ax.set_xlabel("frequency [Hz]")
     ax.set_ylabel(f"{output} receptance [m/N]")
     ax.set_yscale("log")
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=8)
-    if title:
-        ax.set_title(title)
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return Path(path)
+    return finish(fig, ax, path, title=title)
 
 
 def plot_compare(results, output: str, frf_path: Path, pareto_path: Path, *, title: str = "") -> tuple[Path, Path]:
@@ -83,13 +88,7 @@ def plot_compare(results, output: str, frf_path: Path, pareto_path: Path, *, tit
                 lw=2.2 if i == 0 else 1.1, label=f"{r.spec.label} (size {r.size_max})", zorder=1 if i == 0 else 2)
     ax.set_xlabel("frequency [Hz]")
     ax.set_ylabel(f"{output}: 1st harmonic amplitude [m]")
-    ax.grid(True, alpha=0.3)
-    ax.legend(fontsize=7)
-    if title:
-        ax.set_title(title)
-    fig.tight_layout()
-    fig.savefig(frf_path, dpi=120)
-    plt.close(fig)
+    finish(fig, ax, frf_path, title=title, legend_size=7)
 
     fig, ax = plt.subplots(figsize=(6.5, 4.5))
     for r in results[1:]:
@@ -102,11 +101,4 @@ def plot_compare(results, output: str, frf_path: Path, pareto_path: Path, *, tit
     ax.axvline(results[0].online_s, color="k", ls="--", lw=1, label=f"full order ({results[0].online_s:.1f} s)")
     ax.set_xlabel("online time [s]")
     ax.set_ylabel("largest curve error [% of peak]")
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=7)
-    if title:
-        ax.set_title(title)
-    fig.tight_layout()
-    fig.savefig(pareto_path, dpi=120)
-    plt.close(fig)
-    return Path(frf_path), Path(pareto_path)
+    return Path(frf_path), finish(fig, ax, pareto_path, title=title, legend_size=7)

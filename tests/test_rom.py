@@ -233,3 +233,27 @@ def test_method_specs_parse_and_refuse():
     for bad in ("guyan", "cb:x", "cb:1:2:3", "cb:-1"):
         with pytest.raises(RomError, match="--methods"):
             parse_method(bad, d)
+
+
+def test_compare_reports_a_failed_rom_sweep(monkeypatch):
+    """A ROM whose sweep stops is a row with its reason, not the end of the comparison."""
+    import jointfem.frf as frf_mod
+    from jointfem.continuation.arclength import ContinuationError
+    from jointfem.rom.compare import compare, to_markdown
+
+    s = create_beam2d(Beam2DSpec(elements=6, force=1e-3, **RAYLEIGH))
+    real = frf_mod.compute_frf
+
+    def fake(model, sweep, **kw):
+        if getattr(model, "method", "full") == "cb":
+            raise ContinuationError("continuation step fell below ds_min (test)")
+        return real(model, sweep, **kw)
+
+    monkeypatch.setattr(frf_mod, "compute_frf", fake)
+    sweep = SweepOptions(2100.0, 2250.0, Harmonics(1, 16))
+    d = RomOptions(modes=6)
+    res = compare(s, [parse_method("cb", d), parse_method("penalty", d)], sweep, output="b1.mid.uy", num_freq=3)
+    assert [r.spec.method for r in res] == ["full", "cb", "penalty"]
+    assert res[1].failure.startswith("continuation step") and np.isnan(res[1].row()["peak_amp_err_pct"])
+    assert not res[2].failure and abs(res[2].peak_amp_err_pct) < 1.0
+    assert "failed after" in to_markdown(res, 3)

@@ -86,6 +86,11 @@ class MethodResult:
     frf: FrequencyResponse | None = field(default=None, repr=False)
     failure: str = ""  # why the ROM's sweep stopped (then no FRF errors)
 
+    @property
+    def size_text(self) -> str:
+        """'16', or '10-16' when the size changed along the branch."""
+        return f"{self.size_min}" if self.size_min == self.size_max else f"{self.size_min}-{self.size_max}"
+
     def row(self) -> dict:
         r = {"method": self.spec.label, "size_min": self.size_min, "size_max": self.size_max,
              "reduction_ratio": self.size_max / self.full_size, "offline_s": self.offline_s,
@@ -156,7 +161,7 @@ def to_markdown(results: list[MethodResult], num_freq: int = 9) -> str:
             "| curve err % |")
     lines = [head, "|" + "---|" * 9]
     for r in results:
-        size = f"{r.size_min}" if r.size_min == r.size_max else f"{r.size_min}-{r.size_max}"
+        size = r.size_text
         if r.failure:
             lines.append(f"| {r.spec.label} | {size} | {r.size_max / r.full_size:.3f} | {r.offline_s:.3f} | "
                          f"failed after {r.online_s:.2f} s: {r.failure} | | | | |")
