@@ -15,7 +15,7 @@ with Phi the stuck vibration modes, V POD-compressed trial-vector derivatives (E
 and p itself as the last coordinates (T = [[Phi, V, Psi], [0, 0, I]], Eq. 13-14), keeps
 only the components of the active set A: the others are 0 and their rows are dropped
 (the index matrix B).  With every mode kept, T is square and invertible, so the ROM is
-the full model (tests/test_rom.py checks the nonlinear FRF to 1e-8).
+the full model (tests/test_rom.py checks separated solutions to 1e-8).
 
 Because Psi is K_lin-orthogonal to the modes, the reduced stiffness is block diagonal:
 diag(Phi^T K_lin Phi, Kc - Kc G Psi) in (eta, p).
