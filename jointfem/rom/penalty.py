@@ -28,7 +28,7 @@ the step is redone (continuation's ``adapt`` hook).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
