@@ -56,6 +56,13 @@ def plot_frf(frf: FrequencyResponse, path: Path, *, title: str = "") -> Path:
         ax2.set_ylim(-0.02, 1.02)
         ax2.set_ylabel("share of\npair-time")
         ax2.legend(fontsize=7, loc="center left", ncol=3)
+        sizes = frf.info.get("arrays", {}).get("rom_size")
+        if sizes is not None and np.ptp(sizes) > 0:
+            # an adaptive ROM: its size along the branch, on a second axis
+            ax3 = ax2.twinx()
+            ax3.step(f_hz, sizes, where="mid", color="0.35", lw=1, ls=":", label="ROM size")
+            ax3.set_ylabel("ROM size", color="0.35")
+            ax3.legend(fontsize=7, loc="center right")
     axes[-1, 0].set_xlabel("frequency [Hz]")
     fig.tight_layout()
     path = Path(path)

@@ -58,6 +58,8 @@ def test_frf_with_the_penalty_rom_records_its_size(tmp_path):
     b = load_branch(tmp_path / "pen" / "branch.npz")
     assert set(np.unique(b["rom_size"])) == {1, 2} and b["active"].shape == (b["omega"].size, 1)
     assert b["output_recovery"].shape == (1, 2)
+    png_full, png_pen = ((tmp_path / d / "frf.png").read_bytes() for d in ("full", "pen"))
+    assert png_pen[:8] == b"\x89PNG\r\n\x1a\n" and png_pen != png_full  # the ROM size is drawn on a second axis
     full = json.loads((tmp_path / "full" / "summary.json").read_text())["peaks"]["m.x"]
     pen = s["peaks"]["m.x"]
     # the complete basis is the full model: the peaks differ only by where the points fall (< 1e-4)
