@@ -21,8 +21,8 @@ Because Psi is K_lin-orthogonal to the modes, the reduced stiffness is block dia
 diag(Phi^T K_lin Phi, Kc - Kc G Psi) in (eta, p).
 
 Adaptive size: the active set is taken at each predictor from the last converged point
-(components that slipped or separated there, or whose p is not zero, or that did within the
-last ``release_after`` points: hysteresis); after each corrector every inactive component is
+(components that slipped or separated there, or whose stuck state the linear spring could not
+hold, or that did within the last ``release_after`` points: hysteresis); after each corrector every inactive component is
 checked against the friction law with its linear force; any violation enlarges the set and
 the step is redone (continuation's ``adapt`` hook).
 """
@@ -234,14 +234,30 @@ class PenaltyProblem:
         return out
 
     # --- the active set ---------------------------------------------------------------------
+    def _linear_breaks(self, U) -> np.ndarray:
+        """Components whose force, were they stuck at the unloaded position (p = 0, the linear
+        spring), would break the law at some sample: |t| > mu N (tangential) or N < 0 (a
+        separation flags the whole pair)."""
+        bad = np.zeros(self.rom.num_comp, bool)
+        for gr, g_t in zip(self.rom.groups, self._gap_time(U)):
+            pr = gr.group.pairs
+            P, m, nt = pr.num_pairs, pr.num_comp, pr.num_tangential
+            N = pr.N0[None, :] + (pr.kn[None, :] * g_t[:, :, -1] if pr.has_normal else 0.0)
+            sep = (N < -self.friction_tol * np.maximum(pr.N0, 1e-300)).any(axis=0)
+            t = pr.kt[None, :] * np.linalg.norm(g_t[:, :, :nt], axis=2)
+            slip = (t > pr.mu * np.maximum(N, 0.0) + self.friction_tol * np.maximum(pr.mu * pr.N0, 1e-300)).any(axis=0)
+            new = np.zeros((P, m), bool)
+            new[slip | sep, :nt] = True
+            if pr.has_normal:
+                new[sep, :] = True
+            bad[gr.first:gr.first + P * m] = new.ravel()
+        return bad
+
     def _busy(self, U, omega) -> np.ndarray:
-        """Components that must be active at a converged point: slip/separation in the AFT of
-        active pairs, or a non-zero internal variable (a shakedown offset)."""
+        """Components that must stay active at a converged point: slip or separation in the AFT of
+        active pairs, or a stuck state the linear spring could not hold (a shakedown offset)."""
         busy = np.zeros(self.rom.num_comp, bool)
         st = self.states(U, omega)
-        Z = U.reshape(self.harmonics.num_hc, self.q)
-        p = np.abs(Z[:, self.rom.p_slots]).max(axis=0)
-        gscale = max(np.abs(np.concatenate([Z @ gr.Gr.T for gr in self.rom.groups], axis=1)).max(), 1e-300)
         for k, pr in enumerate(self.pairs):
             nt = self.rom.groups[pr.group].group.pairs.num_tangential
             slip = np.any(st[:, k] == SLIP)
@@ -250,29 +266,12 @@ class PenaltyProblem:
                 busy[pr.comps[:nt]] = True
             if sep and pr.comps.size > nt:
                 busy[pr.comps[nt:]] = True
-            big = p[pr.comps] > 1e-8 * gscale
-            busy[pr.comps] |= big & self.mask[pr.comps]
-        return busy
+        # releasing a component pins p = 0: only where the linear spring holds the law
+        return busy | (self._linear_breaks(U) & self.mask)
 
     def violations(self, U) -> np.ndarray:
         """Inactive components whose linear force breaks the law at some sample: |t| > mu N or N < 0."""
-        need = np.zeros(self.rom.num_comp, bool)
-        for gr, g_t in zip(self.rom.groups, self._gap_time(U)):
-            pr = gr.group.pairs
-            P, m, nt = pr.num_pairs, pr.num_comp, pr.num_tangential
-            act = self.mask[gr.first:gr.first + P * m].reshape(P, m)
-            N = pr.N0[None, :] + (pr.kn[None, :] * g_t[:, :, -1] if pr.has_normal else 0.0)
-            sep = (N < -self.friction_tol * np.maximum(pr.N0, 1e-300)).any(axis=0)
-            t = pr.kt[None, :] * np.linalg.norm(g_t[:, :, :nt], axis=2)
-            slip = (t > pr.mu * np.maximum(N, 0.0) + self.friction_tol * np.maximum(pr.mu * pr.N0, 1e-300)).any(axis=0)
-            bad_t = (slip | sep) & ~act[:, :nt].all(axis=1)
-            new = np.zeros((P, m), bool)
-            new[bad_t, :nt] = True
-            if pr.has_normal:
-                bad_n = sep & ~act[:, -1]
-                new[bad_n, :] = True
-            need[gr.first:gr.first + P * m] = new.ravel() & ~act.ravel()
-        return need
+        return self._linear_breaks(U) & ~self.mask
 
     def after_converge(self, U, omega) -> bool:
         """Continuation hook: enlarge the set if an inactive component breaks the law (redo the step)."""
