@@ -125,17 +125,8 @@ def compute_frf(model, options: SweepOptions, *,
     lam_scale = abs(options.omega_end - options.omega_start)
     t_setup = time.perf_counter() - t0
 
-    # The continuation evaluates an accepted point again for its tangent and for its contact
-    # states: keep the last evaluation instead of running the AFT three times.
-    last = {"key": None, "ev": None}
-
     def evaluate(U, omega, jacobian):
-        key = (float(omega), U.tobytes(), getattr(problem, "mask", np.zeros(0)).tobytes())
-        ev = last["ev"]
-        if last["key"] != key or (jacobian and ev.J is None):
-            ev = problem.evaluate(U, omega, jacobian=jacobian)
-            last.update(key=key, ev=ev)
-        return ev
+        return problem.evaluate(U, omega, jacobian=jacobian)  # HBMResidual keeps the last one
 
     def fun(U, omega):
         ev = evaluate(U, omega, True)

@@ -48,6 +48,7 @@ class HBMResidual:
         self._A2 = sp.kron(nab @ nab, structure.M, format="csr")
         if dense:
             self._A0, self._A1, self._A2 = (a.toarray() for a in (self._A0, self._A1, self._A2))
+        self._last = None  # (key, Evaluation) of the last evaluate
         F = np.zeros(self.num_unknowns)
         F[harmonics.cos(1, n)] = structure.fc
         F[harmonics.sin(1, n)] = structure.fs
@@ -77,6 +78,18 @@ class HBMResidual:
         return [(B @ U).reshape(nh, g.pairs.num_pairs, g.pairs.num_comp) for g, B, *_ in self._groups]
 
     def evaluate(self, U: np.ndarray, omega: float, *, jacobian: bool = True) -> Evaluation:
+        """R (and J, dR/domega) at (U, omega).  The continuation evaluates an accepted point again
+        for its tangent, its contact states and the penalty ROM's active set: the last evaluation
+        is kept and returned for the same (U, omega) instead of running the AFT again."""
+        key = (float(omega), U.tobytes())
+        last = self._last
+        if last is not None and last[0] == key and (last[1].J is not None or not jacobian):
+            return last[1]
+        ev = self._evaluate(U, omega, jacobian)
+        self._last = (key, ev)
+        return ev
+
+    def _evaluate(self, U: np.ndarray, omega: float, jacobian: bool) -> Evaluation:
         A = self.linear_operator(omega)
         R = A @ U - self.F_ext
         J = A if jacobian else None

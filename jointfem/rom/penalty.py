@@ -253,9 +253,10 @@ class PenaltyProblem:
             bad[gr.first:gr.first + P * m] = new.ravel()
         return bad
 
-    def _busy(self, U, omega) -> np.ndarray:
+    def _busy(self, U, omega, breaks: np.ndarray) -> np.ndarray:
         """Components that must stay active at a converged point: slip or separation in the AFT of
-        active pairs, or a stuck state the linear spring could not hold (a shakedown offset)."""
+        active pairs, or a stuck state the linear spring could not hold (a shakedown offset).
+        ``breaks``: _linear_breaks(U)."""
         busy = np.zeros(self.rom.num_comp, bool)
         st = self.states(U, omega)
         for k, pr in enumerate(self.pairs):
@@ -267,7 +268,7 @@ class PenaltyProblem:
             if sep and pr.comps.size > nt:
                 busy[pr.comps[nt:]] = True
         # releasing a component pins p = 0: only where the linear spring holds the law
-        return busy | (self._linear_breaks(U) & self.mask)
+        return busy | (breaks & self.mask)
 
     def violations(self, U) -> np.ndarray:
         """Inactive components whose linear force breaks the law at some sample: |t| > mu N or N < 0."""
@@ -275,13 +276,14 @@ class PenaltyProblem:
 
     def after_converge(self, U, omega) -> bool:
         """Continuation hook: enlarge the set if an inactive component breaks the law (redo the step)."""
-        need = self.violations(U)
+        breaks = self._linear_breaks(U)
+        need = breaks & ~self.mask
         if need.any():
             self.mask = self.mask | need
             self.events["activated"] += int(need.sum())
             self.events["redone_steps"] += 1
             return True
-        self.history.append(self._busy(U, omega))
+        self.history.append(self._busy(U, omega, breaks))
         return False
 
     def before_step(self, U, omega):
