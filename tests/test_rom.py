@@ -257,3 +257,30 @@ def test_compare_reports_a_failed_rom_sweep(monkeypatch):
     assert res[1].failure.startswith("continuation step") and np.isnan(res[1].row()["peak_amp_err_pct"])
     assert not res[2].failure and abs(res[2].peak_amp_err_pct) < 1.0
     assert "failed after" in to_markdown(res, 3)
+
+
+def test_mode_derivatives_match_finite_differences():
+    """The exact d phi_i / d log k_j (bordered solve) against central differences of the modes of
+    the beam with one contact stiffness scaled by (1 +- h)."""
+    import dataclasses
+
+    from jointfem.rom.cms import mode_derivatives
+
+    s = beam(elements=6)
+    w2, Phi = eigen(s.K_lin, s.M, 4)
+    D = mode_derivatives(s, Phi, w2)
+    g = s.contacts[0]
+    h = 1e-3  # central differences: O(h^2) = 1e-6 truncation; smaller h loses digits to the eigensolver
+    for j in (0, 1, 4):  # tangential and normal components of pairs 0 and 2
+        modes = []
+        for sign in (1, -1):
+            kt, kn = g.pairs.kt.copy(), g.pairs.kn.copy()
+            p, a = divmod(j, 2)
+            (kt if a == 0 else kn)[p] *= 1 + sign * h
+            pairs = dataclasses.replace(g.pairs, kt=kt, kn=kn)
+            sj = dataclasses.replace(s, contacts=(dataclasses.replace(g, pairs=pairs),))
+            _, P = eigen(sj.K_lin, sj.M, 4)
+            modes.append(P * np.sign(np.sum(P * (s.M @ Phi), axis=0)))  # same sign as Phi
+        fd = (modes[0] - modes[1]) / (2 * h)
+        scale = np.abs(D[:, :, j]).max()
+        assert scale > 0 and np.abs(fd - D[:, :, j]).max() <= 1e-5 * scale

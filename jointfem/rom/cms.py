@@ -199,35 +199,45 @@ def joint_interface_modes(structure: Structure, options: RomOptions) -> ReducedM
     return project(structure, np.hstack([Tm, Ts @ Q]), "jim", info={"modes": Tm.shape[1], "statics": num})
 
 
-def trial_vector_derivatives(structure: Structure, Phi: np.ndarray, w2: np.ndarray, num: int,
-                             against: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """POD of the mode derivatives with respect to the stiffness of each contact component.
+def mode_derivatives(structure: Structure, Phi: np.ndarray, w2: np.ndarray) -> np.ndarray:
+    """d phi_i / d log k_j of the stuck modes, for every mode i and contact component j.
 
     For each mass-normalised mode phi_i of the stuck structure and each contact component j
-    (stiffness k_j, gap row g_j), the exact derivative d phi_i / d log k_j solves the bordered
-    system [[K - w_i^2 M, M phi_i], [phi_i^T M, 0]] [v; c] = [-(k_j g_j^T g_j phi_i - dw2 M phi_i); 0].
-    There are one per mode and component before POD.  Returns (num vectors, all singular values).
+    (stiffness k_j, gap row g_j), the exact derivative solves the bordered system
+    [[K - w_i^2 M, M phi_i], [phi_i^T M, 0]] [v; c] = [-(k_j g_j^T g_j phi_i - dw2 M phi_i); 0],
+    dw2 = k_j (g_j phi_i)^2.  Returns shape (n, modes, components).
     """
     n = structure.num_dofs
-    if num == 0:
-        return np.zeros((n, 0)), np.zeros(0)
     G = sp.vstack([g.gap for g in structure.contacts]).tocsr()
     k = np.concatenate([g.pairs.stiffness.ravel() for g in structure.contacts])
+    GT = G.T.toarray()
     K, M = structure.K_lin, structure.M
-    snaps = []
+    out = np.empty((n, Phi.shape[1], k.size))
     for i in range(Phi.shape[1]):
         phi = Phi[:, i]
         Mphi = M @ phi
         gphi = G @ phi  # (J,)
-        rhs = -(G.T.toarray() * (k * gphi) - np.outer(Mphi, k * gphi**2))
+        rhs = -(GT * (k * gphi) - np.outer(Mphi, k * gphi**2))
         A = sp.bmat([[K - w2[i] * M, sp.csr_matrix(Mphi[:, None])], [sp.csr_matrix(Mphi[None, :]), None]], format="csc")
         try:
             v = Factorized(A, what=f"TVD: bordered matrix of mode {i + 1}").solve(np.vstack([rhs, np.zeros((1, k.size))]))
         except LinAlgError as exc:
             raise RomError(f"{exc} (a repeated eigenvalue?)") from exc
-        snaps.append(v[:n])
-    V = np.hstack(snaps)
-    vecs, sv = pod(V, M, num, against=Phi if against is None else against)
+        out[:, i] = v[:n]
+    return out
+
+
+def trial_vector_derivatives(structure: Structure, Phi: np.ndarray, w2: np.ndarray, num: int,
+                             against: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """POD of the mode derivatives with respect to the stiffness of each contact component
+    (mode_derivatives: one per mode and component before POD), in the M inner product, after
+    removing their M-projection on ``against`` (default Phi).  Returns (num vectors, all
+    singular values)."""
+    if num == 0:
+        return np.zeros((structure.num_dofs, 0)), np.zeros(0)
+    D = mode_derivatives(structure, Phi, w2)
+    V = D.reshape(D.shape[0], -1)
+    vecs, sv = pod(V, structure.M, num, against=Phi if against is None else against)
     if vecs.shape[1] < num:
         raise RomError(f"tvd: only {vecs.shape[1]} independent trial-vector derivatives exist, {num} asked")
     return vecs, sv
