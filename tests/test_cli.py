@@ -75,6 +75,10 @@ def test_rom_errors_are_clear_and_early(tmp_path):
     assert r.returncode == 2 and "'penalty:x'" in r.stderr and not (tmp_path / "c").exists()
     r = _run("frf", scene, "--out", tmp_path / "p", "--method", "penalty", "--modes", "5", "--quiet")
     assert r.returncode == 2 and "5 modes" in r.stderr and not (tmp_path / "p").exists()
+    r = _run("frf", scene, "--out", tmp_path / "n", "--method", "penalty", "--modes", "-1", "--quiet")
+    assert r.returncode == 2 and "--modes = -1" in r.stderr and not (tmp_path / "n").exists()
+    r = _run("compare", ROOT / "demos" / "beam2d.toml", "--out", tmp_path / "o", "--output", "b9.mid.uy")
+    assert r.returncode == 2 and "--output = 'b9.mid.uy'" in r.stderr and not (tmp_path / "o").exists()
 
 
 def test_compare_writes_table_and_plots(tmp_path):
