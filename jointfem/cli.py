@@ -140,15 +140,13 @@ def cmd_compare(args) -> int:
 
     results = compare(structure, specs, sweep_options(scene), output=output, progress=progress)
     from .plots import plot_compare
-    from .results import write_table
+    from .results import atomic_write_text, write_table
 
     rows = [r.row() for r in results]
     write_table(rows, out / "compare.csv")
     md = (f"# {scene.name}: ROMs against full order\n\nScene {scene.path}, output {output}, "
           f"H = {scene.solver.harmonics}, N = {scene.solver.samples}, full size {structure.num_dofs}.\n\n"
           + to_markdown(results))
-    from .results import atomic_write_text
-
     atomic_write_text(out / "compare.md", md)
     plot_compare(results, output, out / "compare_frf.png", out / "compare_pareto.png", title=scene.name)
     if not args.quiet:
