@@ -2,7 +2,7 @@
 PY := .venv/bin/python
 MPIRUN := mpirun $(if $(filter 0,$(shell id -u)),--allow-run-as-root) --oversubscribe
 
-.PHONY: setup demo test test-fast bench paper clean
+.PHONY: setup demo test test-fast bench paper validate clean
 
 setup:
 	@bash tools/setup.sh
@@ -19,6 +19,9 @@ bench: setup
 
 paper: setup
 	$(PY) demos/paper_figures.py --out docs
+
+validate: setup
+	$(PY) demos/validation.py --out docs
 
 clean:
 	rm -rf results .pytest_cache

@@ -13,7 +13,7 @@ from .contact.jenkins import ContactError
 from .linalg import LinAlgError
 from .results import OutputError
 from .rom.common import METHODS, RomError, RomOptions
-from .scene import Scene, SceneError, create_structure, load_scene
+from .scene import Scene, SceneError, check_solvable, create_structure, load_scene
 
 DEFAULT_COMPARE = "cb,rubin,macneal,dcb,jim,tvd:20:3,penalty"
 
@@ -49,6 +49,7 @@ def solve_scene(scene: Scene, *, progress: bool = False, method: str = "full", r
     from .frf import compute_frf
     from .rom import build_rom
 
+    check_solvable(scene)
     t0 = time.perf_counter()
     structure = create_structure(scene)
     rom = None if method == "full" else build_rom(structure, method, rom_options)
@@ -86,11 +87,16 @@ def _rom_options(args) -> RomOptions:
 
 
 def cmd_frf(args) -> int:
+    from . import parallel
+
     scene = _override(load_scene(args.scene), args)
     out = Path(args.out) if args.out else Path("results") / scene.name
     t0 = time.perf_counter()
-    structure, frf, t_build, rom = solve_scene(scene, progress=not args.quiet, method=args.method,
+    root = parallel.is_root()
+    structure, frf, t_build, rom = solve_scene(scene, progress=not args.quiet and root, method=args.method,
                                                rom_options=_rom_options(args))
+    if not root:  # every rank solved the same replicated problem; rank 0 writes it once
+        return 0
     from .results import save_frf
 
     sizes = frf.info["arrays"]["rom_size"]
@@ -103,7 +109,8 @@ def cmd_frf(args) -> int:
         "scene": str(scene.path), "scene_data": scene.data, "kind": scene.kind, "method": args.method,
         "model": {"num_dofs": structure.num_dofs, "num_pairs": structure.num_pairs},
         "rom": rom_info,
-        "harmonics": scene.solver.harmonics, "samples": scene.solver.samples,
+        "harmonics": scene.solver.harmonics, "samples": scene.solver.samples, "mpi_ranks": parallel.size(),
+        "model_timings_s": structure.info.get("timings", {}),
         "num_unknowns": frf.info["num_unknowns"],
         "omega_start_rad_s": scene.solver.omega_start, "omega_end_rad_s": scene.solver.omega_end,
         "wall_s": {"build": t_build, "setup": frf.info["time_setup_s"], "continuation": frf.info["time_online_s"],
@@ -128,6 +135,7 @@ def cmd_compare(args) -> int:
     scene = _override(load_scene(args.scene), args)
     defaults = _rom_options(args)
     specs = [parse_method(m, defaults) for m in args.methods.split(",") if m.strip()]
+    check_solvable(scene)
     structure = create_structure(scene)
     output = args.output or next(iter(structure.outputs), None)
     if output not in structure.outputs:

@@ -95,9 +95,12 @@ class StructureProblem:
 
 def make_problem(model, harmonics: Harmonics):
     """The HBM problem of a Structure, a ReducedModel or a PenaltyROM."""
-    from .rom.common import ReducedModel
+    from .hbm.condensed import CondensedProblem
+    from .rom.common import ExactModel, ReducedModel
     from .rom.penalty import PenaltyProblem, PenaltyROM
 
+    if isinstance(model, ExactModel):
+        return CondensedProblem(model.full, harmonics)
     if isinstance(model, PenaltyROM):
         return PenaltyProblem(model, harmonics)
     if isinstance(model, ReducedModel):
@@ -109,7 +112,8 @@ def compute_frf(model, options: SweepOptions, *,
                 callback: Callable[[ContinuationPoint], None] | None = None) -> FrequencyResponse:
     """Nonlinear FRF from the stuck linear solution at omega_start.
 
-    ``model``: a Structure (full order), a ReducedModel (CMS, tvd) or a PenaltyROM.
+    ``model``: a Structure (full order), a ReducedModel (CMS, tvd), a PenaltyROM or an
+    ExactModel (exact condensation on the contact gaps).
     """
     h = options.harmonics
     t0 = time.perf_counter()
@@ -120,8 +124,10 @@ def compute_frf(model, options: SweepOptions, *,
     dof_scale = problem.scales(options.omega_start, options.omega_end)
     # Unit scaled norm for a response of the size of the largest linear one.
     x_scale = np.tile(dof_scale, nh) * np.sqrt(q)
-    F = np.concatenate([structure.fc, structure.fs])
-    r_scale = float(max(np.abs(F).max(), 1e-300))
+    if hasattr(problem, "force_scale"):
+        r_scale = problem.force_scale()
+    else:
+        r_scale = float(max(np.abs(np.concatenate([structure.fc, structure.fs])).max(), 1e-300))
     lam_scale = abs(options.omega_end - options.omega_start)
     t_setup = time.perf_counter() - t0
 

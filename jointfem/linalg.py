@@ -1,9 +1,16 @@
-"""Sparse/dense linear algebra for the offline stage (scipy backend).
+"""Sparse/dense linear algebra for the offline stage: scipy, or PETSc/SLEPc with MUMPS.
 
 Only this module, the mesh and the fem modules may touch an eigen- or linear-solver
-package directly; the PETSc/SLEPc backend of the continuum models plugs in here.
+package directly.  Matrices arrive as scipy (replicated on every MPI rank); above
+``SPARSE_PETSC`` DOFs, when petsc4py and slepc4py import, the eigenvalue problems
+(SLEPc Krylov-Schur, shift-invert, MUMPS) and the factorisations (PETSc KSP + MUMPS LU)
+run distributed over ``MPI.COMM_WORLD``: each rank hands PETSc its block of rows and
+gets the full result back, so the caller never knows.  ``JOINTFEM_LINALG=scipy`` forces
+the scipy backend (ARPACK shift-invert and SuperLU), for comparisons.
 """
 from __future__ import annotations
+
+import os
 
 import numpy as np
 import scipy.linalg as sla
@@ -11,16 +18,124 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 DENSE_LIMIT = 2500  # dense eigh below this many DOFs: exact and fast enough
+SPARSE_PETSC = 2500  # PETSc/SLEPc above this many DOFs (when available)
+
+
+def backend(n: int) -> str:
+    """'dense', 'scipy' or 'petsc' for a problem of n DOFs."""
+    if n <= DENSE_LIMIT:
+        return "dense"
+    choice = os.environ.get("JOINTFEM_LINALG", "petsc")
+    if choice == "petsc" and n > SPARSE_PETSC and _petsc() is not None:
+        return "petsc"
+    return "scipy"
+
+
+def _petsc():
+    try:
+        from petsc4py import PETSc
+        from slepc4py import SLEPc  # noqa: F401
+    except ImportError:  # pragma: no cover - the Debian stack has both
+        return None
+    return PETSc
+
+
+def _comm():
+    from petsc4py import PETSc
+
+    return PETSc.COMM_WORLD
+
+
+def _rows(n: int):
+    comm = _comm()
+    size, rank = comm.getSize(), comm.getRank()
+    bounds = np.linspace(0, n, size + 1).round().astype(int)
+    return int(bounds[rank]), int(bounds[rank + 1])
+
+
+def _to_petsc(A):
+    """A replicated scipy matrix as a distributed PETSc AIJ (each rank inserts its rows)."""
+    from petsc4py import PETSc
+
+    A = sp.csr_matrix(A)
+    n = A.shape[0]
+    r0, r1 = _rows(n)
+    blk = A[r0:r1]
+    blk.sort_indices()
+    M = PETSc.Mat().createAIJ(size=((r1 - r0, n), (r1 - r0, n)), csr=(blk.indptr.astype(PETSc.IntType),
+                              blk.indices.astype(PETSc.IntType), blk.data), comm=_comm())
+    M.assemble()
+    return M
+
+
+def _gather_vec(v) -> np.ndarray:
+    """The whole of a distributed PETSc vector, on every rank."""
+    from petsc4py import PETSc
+
+    scatter, full = PETSc.Scatter.toAll(v)
+    scatter.scatter(v, full, addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
+    out = full.getArray().copy()
+    scatter.destroy()
+    full.destroy()
+    return out
+
+
+def _mumps_ksp(A, *, symmetric: bool):
+    from petsc4py import PETSc
+
+    ksp = PETSc.KSP().create(_comm())
+    ksp.setOperators(A)
+    ksp.setType("preonly")
+    pc = ksp.getPC()
+    pc.setType("cholesky" if symmetric else "lu")
+    pc.setFactorSolverType("mumps")
+    return ksp
+
+
+def _eigen_petsc(K, M, num: int, what: str, sigma: float):
+    from slepc4py import SLEPc
+
+    A, B = _to_petsc(K), _to_petsc(M)
+    eps = SLEPc.EPS().create(_comm())
+    eps.setOperators(A, B)
+    eps.setProblemType(SLEPc.EPS.ProblemType.GHEP)
+    eps.setDimensions(num, max(2 * num + 10, num + 20))
+    eps.setTolerances(1e-12, 500)
+    eps.setWhichEigenpairs(SLEPc.EPS.Which.TARGET_MAGNITUDE)
+    eps.setTarget(sigma)
+    st = eps.getST()
+    st.setType("sinvert")
+    st.setShift(sigma)
+    ksp = st.getKSP()
+    ksp.setType("preonly")
+    pc = ksp.getPC()
+    pc.setType("cholesky")
+    pc.setFactorSolverType("mumps")
+    eps.solve()
+    nconv = eps.getConverged()
+    if nconv < num:
+        raise LinAlgError(f"{what}: SLEPc converged {nconv} of {num} eigenpairs")
+    vr = A.createVecRight()
+    w2, vecs = [], []
+    for i in range(nconv):
+        w2.append(eps.getEigenpair(i, vr).real)
+        vecs.append(_gather_vec(vr))
+    order = np.argsort(w2)[:num]
+    for obj in (eps, A, B, vr):
+        obj.destroy()
+    return np.asarray(w2)[order], np.column_stack([vecs[i] for i in order])
 
 
 class LinAlgError(RuntimeError):
     """An offline solve failed (singular matrix, unconverged eigenvalues)."""
 
 
-def eigen(K, M, num: int, *, what: str = "model") -> tuple[np.ndarray, np.ndarray]:
+def eigen(K, M, num: int, *, what: str = "model", sigma: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
     """The ``num`` lowest eigenpairs of K phi = w^2 M phi, mass-normalised.
 
     Returns (w2 ascending, Phi of shape (n, num)).  Raises LinAlgError if fewer exist.
+    sigma: the shift of the sparse shift-invert solvers, rad^2/s^2 (negative for a structure
+    with rigid-body modes, whose K is singular).
     """
     n = K.shape[0]
     if num < 1:
@@ -45,8 +160,10 @@ def eigen(K, M, num: int, *, what: str = "model") -> tuple[np.ndarray, np.ndarra
                 w2, Phi = sla.eigh(Kd, Md, subset_by_index=[0, num - 1])
             except np.linalg.LinAlgError as exc:
                 raise LinAlgError(f"{what}: neither K nor M is positive definite") from exc
+    elif backend(n) == "petsc":
+        w2, Phi = _eigen_petsc(K, M, num, what, sigma)
     else:
-        w2, Phi = spla.eigsh(sp.csc_matrix(K), k=num, M=sp.csc_matrix(M), sigma=0.0, which="LM")
+        w2, Phi = spla.eigsh(sp.csc_matrix(K), k=num, M=sp.csc_matrix(M), sigma=sigma, which="LM")
         order = np.argsort(w2)
         w2, Phi = w2[order], Phi[:, order]
     # mass-normalise (eigh already does; eigsh nearly) and fix the sign for reproducibility
@@ -57,7 +174,16 @@ def eigen(K, M, num: int, *, what: str = "model") -> tuple[np.ndarray, np.ndarra
 
 
 class Factorized:
-    """A sparse LU of a square matrix, with a clear error when it is singular."""
+    """A sparse LU of a square matrix, with a clear error when it is singular.
+
+    Above SPARSE_PETSC rows and for a real matrix: MUMPS through PETSc, distributed.
+    """
+
+    def __new__(cls, A, *, what: str = "matrix"):
+        if cls is Factorized and not np.iscomplexobj(A.data if sp.issparse(A) else A) \
+                and sp.issparse(A) and backend(A.shape[0]) == "petsc":
+            return super().__new__(_MumpsFactorized)
+        return super().__new__(cls)
 
     def __init__(self, A, *, what: str = "matrix"):
         self.what = what
@@ -73,8 +199,43 @@ class Factorized:
                               f"a substructure without supports (rigid-body modes)?")
 
     def solve(self, B: np.ndarray) -> np.ndarray:
+        B = B.toarray() if sp.issparse(B) else np.asarray(B)
+        return self._lu.solve(B if np.iscomplexobj(B) else B.astype(float))
+
+
+class _MumpsFactorized(Factorized):
+    """MUMPS LU of a replicated scipy matrix over COMM_WORLD (see Factorized)."""
+
+    def __init__(self, A, *, what: str = "matrix"):
+        from petsc4py import PETSc
+
+        self.what = what
+        self.n = A.shape[0]
+        self._A = _to_petsc(A)
+        self._ksp = _mumps_ksp(self._A, symmetric=False)
+        try:
+            self._ksp.setUp()
+        except PETSc.Error as exc:
+            raise LinAlgError(f"{what} could not be factorised by MUMPS (error {exc.ierr}): singular? "
+                              f"a substructure without supports (rigid-body modes) cannot be factorised") from exc
+        self._x, self._b = self._A.createVecs()
+
+    def solve(self, B: np.ndarray) -> np.ndarray:
         B = B.toarray() if sp.issparse(B) else np.asarray(B, dtype=float)
-        return self._lu.solve(B)
+        one = B.ndim == 1
+        B = B.reshape(self.n, -1)
+        r0, r1 = self._b.getOwnershipRange()
+        X = np.empty_like(B)
+        for j in range(B.shape[1]):
+            self._b.setArray(B[r0:r1, j])
+            self._ksp.solve(self._b, self._x)
+            if self._ksp.getConvergedReason() < 0:
+                raise LinAlgError(f"{self.what}: MUMPS solve failed (reason {self._ksp.getConvergedReason()})")
+            X[:, j] = _gather_vec(self._x)
+        if not np.all(np.isfinite(X)):
+            raise LinAlgError(f"{self.what} is singular: the MUMPS solution is not finite "
+                              f"(a substructure without supports?)")
+        return X[:, 0] if one else X
 
 
 def pod(V: np.ndarray, M, num: int, against: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:

@@ -20,7 +20,7 @@ from .models.beam2d import resolve_dof
 from .models.lumped import AXES, GROUND, ForceSpec, JenkinsSpec, LinkSpec, LumpedSpec, MassSpec
 from .models.lumped import dof_names as lumped_dof_names
 
-KINDS = ("lumped", "beam2d")
+KINDS = ("lumped", "beam2d", "continuum2d", "continuum3d")
 
 
 class SceneError(ValueError):
@@ -59,7 +59,7 @@ class Scene:
     kind: str
     name: str
     solver: SolverSpec
-    model: Any  # LumpedSpec | Beam2DSpec
+    model: Any  # LumpedSpec | Beam2DSpec | ContinuumSpec
     data: dict  # the parsed TOML, for the record
 
 
@@ -296,6 +296,121 @@ def _beam2d(top: _Table) -> Beam2DSpec:
     return Beam2DSpec(**geo, **joint, **damp, force=force, outputs=outputs)
 
 
+def _point(t: _Table, k: str, dim: int, box) -> tuple[float, ...]:
+    v = t.raw(k)
+    if (not isinstance(v, list) or len(v) != dim
+            or not all(isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in v)):
+        t.fail(k, v, f"must be a point of {dim} coordinates in m")
+    lo, hi = box
+    tol = 1e-9 * max(hi)
+    if any(x < a - tol or x > b + tol for x, a, b in zip(v, lo, hi)):
+        t.fail(k, v, f"lies outside the model's bounding box {list(lo)} .. {list(hi)} m")
+    return tuple(float(x) for x in v)
+
+
+def _continuum(top: _Table, kind: str, path):
+    """[geometry], [mesh], [material], [contact], [damping], [force], [output] of a continuum scene."""
+    from .fem.continuum import GEOMETRIES, Bolt, ContinuumSpec
+
+    dim = 3 if kind == "continuum3d" else 2
+    g = top.table("geometry")
+    shape = g.string("shape", choices=GEOMETRIES)
+    if shape == "brb" and dim != 3:
+        g.fail("shape", shape, "the Brake-Reuss beam is 3D only (kind = \"continuum3d\")")
+    brb = shape == "brb"
+    geo = dict(geometry=shape, dim=dim,
+               length=g.number("length", 0.42 if brb else 0.3, gt=0),
+               height=g.number("height", 0.0254 if brb else 0.006, gt=0),
+               width=g.number("width", 0.0254 if brb else 0.025, gt=0),
+               overlap=g.number("overlap", 0.12 if brb else 0.03, gt=0))
+    if brb and geo["width"] != geo["height"]:
+        g.fail("width", geo["width"], f"the Brake-Reuss section is square: must equal height = {geo['height']}")
+    if shape != "bar" and not geo["overlap"] < geo["length"]:
+        g.fail("overlap", geo["overlap"], f"must be < length = {geo['length']}")
+    clamped = g.strings("clamped", () if brb else ("A", "B"), min_len=0, max_len=2)
+    for c in clamped:
+        if c not in ("A", "B"):
+            g.fail("clamped", list(clamped), "entries must be \"A\" (left end) or \"B\" (right end)")
+    geo["clamped"] = ("A" in clamped, "B" in clamped)
+    if shape == "bar" and not geo["clamped"][0]:
+        g.fail("clamped", list(clamped), "the single bar is a cantilever: must include \"A\"")
+    g.done()
+    m = top.table("mesh")
+    size = m.number("size", gt=0)
+    size_normal = m.number("size_normal", size, gt=0)
+    L = geo["length"]
+    x_end = L if shape == "bar" else 2 * L - geo["overlap"]
+    if x_end / size > 2000 or geo["height"] / size_normal > 200:
+        m.fail("size", size, "gives more than 2000 elements along the bars: too fine for this tool")
+    if shape != "bar" and size > geo["overlap"] * (1 + 1e-9):
+        m.fail("size", size, f"must be <= overlap = {geo['overlap']} m (at least one element in the joint)")
+    mesh = dict(size=size, size_normal=size_normal, degree=m.integer("degree", 2, ge=1),
+                mesh_file=m.string("file", None))
+    if mesh["degree"] > 2:
+        m.fail("degree", mesh["degree"], "must be 1 or 2")
+    m.done()
+    mat = top.table("material", required=False)
+    material = dict(young=mat.number("young", 192.85e9 if brb else 2.1e11, gt=0),
+                    poisson=mat.number("poisson", 0.29 if brb else 0.3, ge=0),
+                    density=mat.number("density", 7857.8 if brb else 7850.0, gt=0))
+    if not material["poisson"] < 0.5:
+        mat.fail("poisson", material["poisson"], "must be < 0.5")
+    mat.done()
+    ymax = 2 * geo["height"] if shape == "lap" else geo["height"]
+    box = ((0.0, 0.0, 0.0)[:dim], (x_end, ymax, geo["width"])[:dim])
+    contact = {}
+    if shape != "bar":
+        c = top.table("contact")
+        contact = dict(kt=c.number("kt", 0.0, ge=0), kn=c.number("kn", 0.0, ge=0),
+                       kt_total=c.number("kt_total", 0.0, ge=0), kn_total=c.number("kn_total", 0.0, ge=0),
+                       mu=c.number("mu", ge=0), pressure=c.number("pressure", 0.0, ge=0))
+        for k in ("kt", "kn"):
+            if (contact[k] > 0) == (contact[k + "_total"] > 0):
+                c.fail(k, contact[k], f"give exactly one of {k} (N/m^3, per contact area) and {k}_total "
+                                      f"(N/m, the whole joint), > 0")
+        bolts = []
+        for b in c.tables("bolt", required=False):
+            x = b.number("x")
+            z = b.number("z", geo["width"] / 2)
+            x0 = L - geo["overlap"]
+            if not x0 <= x <= L:
+                b.fail("x", x, f"must lie in the overlap [{x0}, {L}] m")
+            if dim == 3 and not 0 <= z <= geo["width"]:
+                b.fail("z", z, f"must lie in [0, {geo['width']}] m")
+            bolts.append(Bolt(x, z, b.number("radius", gt=0), b.number("force", gt=0)))
+            b.done()
+        contact["bolts"] = tuple(bolts)
+        contact["patches_only"] = bool(c.raw("patches_only", False))
+        if not isinstance(c.data.get("patches_only", False), bool):
+            c.fail("patches_only", c.data["patches_only"], "must be true or false")
+        if contact["patches_only"] and not bolts:
+            c.fail("patches_only", True, "needs at least one [[contact.bolt]]")
+        c.done()
+    dm = top.table("damping", required=False)
+    dm.string("kind", "rayleigh", choices=("rayleigh",))
+    damping = dict(rayleigh_alpha=dm.number("alpha", 0.0, ge=0), rayleigh_beta=dm.number("beta", 0.0, ge=0))
+    dm.done()
+    comps = ("ux", "uy", "uz")[:dim]
+    f = top.table("force", required=False)
+    force = dict(force=f.number("amplitude", 1.0), force_dir=f.string("direction", "uy", choices=comps),
+                 force_at=_point(f, "at", dim, box) if f.has("at") else (L / 2, 0.0, geo["width"] / 2)[:dim])
+    f.done()
+    out = top.table("output", required=False)
+    pts = out.raw("points", {})
+    if not isinstance(pts, dict):
+        out.fail("points", pts, "must be a table name = [x, y(, z)]")
+    pt = _Table(path, pts, out.key("points"))
+    ocomps = out.strings("components", ("uy",))
+    for cc in ocomps:
+        if cc not in comps:
+            out.fail("components", cc, f"must be one of {', '.join(comps)}")
+    outputs = tuple((nm, _point(pt, nm, dim, box), cc) for nm in pts for cc in ocomps)
+    out.done()
+    if not outputs:  # the driving point
+        outputs = (("drive", force["force_at"], force["force_dir"]),)
+    return ContinuumSpec(**geo, **mesh, **material, **contact, **damping, **force, outputs=outputs, source=str(path))
+
+
 def load_scene(path) -> Scene:
     """Read and validate a scene file.  Raises SceneError (one line) on any bad input."""
     path = Path(path)
@@ -315,9 +430,29 @@ def parse_scene(data: dict, path="<scene>") -> Scene:
     kind = top.string("kind", choices=KINDS)
     name = top.string("name", Path(str(path)).stem)
     solver = _solver(top.table("solver"))
-    model = _lumped(top) if kind == "lumped" else _beam2d(top)
+    if kind == "lumped":
+        model = _lumped(top)
+    elif kind == "beam2d":
+        model = _beam2d(top)
+    else:
+        model = _continuum(top, kind, path)
     top.done()
     return Scene(Path(str(path)), kind, name, solver, model, data)
+
+
+def check_solvable(scene: Scene) -> None:
+    """Refuse, before any expensive work, a nonlinear sweep that cannot have a solution.
+
+    A continuum substructure without a clamp has rigid-body modes: once its joint slips or
+    opens, nothing holds it, and the static (harmonic-0) problem is singular.
+    """
+    spec = scene.model
+    if scene.kind.startswith("continuum") and spec.geometry != "bar" and not all(spec.clamped):
+        free = [s for s, c in zip("AB", spec.clamped) if not c]
+        raise SceneError(scene.path, "geometry.clamped", [s for s, c in zip("AB", spec.clamped) if c],
+                         f"substructure {' and '.join(free)} has no supports (rigid-body modes): a nonlinear "
+                         f"sweep needs both clamped; free-free models are for modal analysis "
+                         f"(jointfem.fem.continuum.create_continuum and jointfem.linalg.eigen with sigma < 0)")
 
 
 def create_structure(scene: Scene):
@@ -325,5 +460,8 @@ def create_structure(scene: Scene):
     if scene.kind == "lumped":
         from .models.lumped import create_lumped
         return create_lumped(scene.model)
-    from .models.beam2d import create_beam2d
-    return create_beam2d(scene.model)
+    if scene.kind == "beam2d":
+        from .models.beam2d import create_beam2d
+        return create_beam2d(scene.model)
+    from .fem.continuum import create_continuum
+    return create_continuum(scene.model)

@@ -1,0 +1,125 @@
+"""Every dolfinx/PETSc version difference lives here (written against dolfinx 0.5.2, PETSc 3.18).
+
+The rest of jointfem.fem calls these helpers instead of the version-specific names:
+
+* 0.5.2 has ``fem.VectorFunctionSpace(mesh, ("Lagrange", p))``; 0.7 onwards has
+  ``fem.functionspace(mesh, ("Lagrange", p, (gdim,)))``.
+* ``dolfinx.io.gmshio.model_to_mesh`` (0.5.0 onwards) returns (mesh, cell_tags, facet_tags).
+* Index maps: ``size_local``/``local_range`` exist in 0.5.2 and later.
+"""
+from __future__ import annotations
+
+import contextlib
+import logging
+
+import numpy as np
+
+
+def _drop_info(record: logging.LogRecord) -> bool:
+    return record.levelno >= logging.WARNING
+
+
+@contextlib.contextmanager
+def quiet_jit():
+    """dolfinx 0.5.2 compiles forms through setuptools, which lowers the root logger to INFO and
+    logs every compiler call on it: drop those records while compiling."""
+    root = logging.getLogger()
+    level = root.level
+    root.addFilter(_drop_info)
+    try:
+        yield
+    finally:
+        root.removeFilter(_drop_info)
+        root.setLevel(level)
+
+
+def import_dolfinx():
+    """Import the FEniCSx stack with a clear error when it is missing."""
+    try:
+        import dolfinx  # noqa: F401
+        import dolfinx.fem.petsc  # noqa: F401
+        import dolfinx.io  # noqa: F401
+        import ufl  # noqa: F401
+        from mpi4py import MPI  # noqa: F401
+    except ImportError as exc:  # pragma: no cover - depends on the machine
+        raise RuntimeError("the continuum models need dolfinx, ufl and mpi4py (Debian: python3-dolfinx; "
+                           "run `make setup`)") from exc
+    return dolfinx
+
+
+def model_to_mesh(gmsh_model, comm, gdim: int):
+    """Mesh, cell tags and facet tags of the gmsh model built on rank 0."""
+    from dolfinx.io import gmshio
+
+    return gmshio.model_to_mesh(gmsh_model, comm, 0, gdim=gdim)
+
+
+def vector_space(mesh, degree: int):
+    import dolfinx.fem as fem
+
+    if hasattr(fem, "VectorFunctionSpace"):
+        with quiet_jit():
+            return fem.VectorFunctionSpace(mesh, ("Lagrange", degree))
+    return fem.functionspace(mesh, ("Lagrange", degree, (mesh.geometry.dim,)))  # pragma: no cover
+
+
+def scalar_space(mesh, degree: int):
+    import dolfinx.fem as fem
+
+    if hasattr(fem, "FunctionSpace") and callable(fem.FunctionSpace):
+        with quiet_jit():
+            return fem.FunctionSpace(mesh, ("Lagrange", degree))
+    return fem.functionspace(mesh, ("Lagrange", degree))  # pragma: no cover
+
+
+def owned_blocks(space) -> tuple[np.ndarray, np.ndarray]:
+    """Global block indices and coordinates (num_owned, 3) of the blocks (nodes) this rank owns."""
+    imap = space.dofmap.index_map
+    n = imap.size_local
+    return np.arange(imap.local_range[0], imap.local_range[0] + n, dtype=np.int64), \
+        space.tabulate_dof_coordinates()[:n]
+
+
+def local_to_global(space, local: np.ndarray) -> np.ndarray:
+    return np.asarray(space.dofmap.index_map.local_to_global(np.asarray(local, dtype=np.int32)), dtype=np.int64)
+
+
+def cell_blocks(space, cells: np.ndarray) -> np.ndarray:
+    """Local block indices of the given local cells."""
+    dm = space.dofmap
+    if len(cells) == 0:
+        return np.zeros(0, dtype=np.int32)
+    return np.unique(np.concatenate([dm.cell_dofs(int(c)) for c in cells]))
+
+
+def facet_blocks(space, facet_tags, tag: int) -> np.ndarray:
+    """Local block indices (owned and ghost) on the facets carrying ``tag``."""
+    import dolfinx.fem as fem
+
+    fdim = space.mesh.topology.dim - 1
+    return fem.locate_dofs_topological(space, fdim, facet_tags.find(tag))
+
+
+def assemble_matrix(form):
+    """Assembled PETSc matrix of a bilinear form (no boundary conditions)."""
+    import dolfinx.fem as fem
+    import dolfinx.fem.petsc as fp
+
+    with quiet_jit():
+        compiled = fem.form(form)
+    A = fp.assemble_matrix(compiled)
+    A.assemble()
+    return A
+
+
+def assemble_vector(form):
+    """Owned part of an assembled linear form, after the ghost contributions are summed."""
+    import dolfinx.fem as fem
+    import dolfinx.fem.petsc as fp
+    from petsc4py import PETSc
+
+    with quiet_jit():
+        compiled = fem.form(form)
+    b = fp.assemble_vector(compiled)
+    b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+    return b.array.copy()

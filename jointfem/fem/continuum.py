@@ -1,0 +1,399 @@
+"""2D (plane stress) and 3D linear-elastic substructures from gmsh and dolfinx, joined by
+node-to-node Jenkins pairs on their node-matched contact surfaces.
+
+Pipeline (each stage timed in ``Structure.info["timings"]``):
+
+1. mesh: ``jointfem.fem.geometry`` builds the gmsh model on rank 0; dolfinx distributes it.
+2. assembly: dolfinx assembles K and M (Lagrange degree 1 or 2) as PETSc matrices on all
+   ranks, without boundary conditions.
+3. gather: every rank receives K and M in a *canonical* DOF order that does not depend on
+   the number of ranks: nodes sorted by (substructure, z, y, x), then the components.  The
+   two faces of the joint carry coincident nodes; the substructure id tells them apart.
+4. interface: the contact nodes of both faces are matched by position (KD-tree) to 1e-10
+   of the model size; nodal areas are the consistent boundary integrals of the scalar shape
+   functions, the nodal normal is the area-weighted outward normal of substructure A.
+5. clamped DOFs are eliminated (not penalised), so no spurious eigenvalue reaches the modes.
+
+The result is a plain ``Structure`` (scipy matrices, replicated on every rank); the solvers
+never see dolfinx.  Gap of pair p, in the frame (t1, [t2], n) of its A-side node:
+``g = R (u_A - u_B)``, with n the outward normal of A, so that ``g_n > 0`` is compression.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import scipy.sparse as sp
+
+from ..contact.jenkins import JenkinsPairs
+from ..models.structure import ContactGroup, Structure
+from . import compat
+from . import geometry as geo
+
+GEOMETRIES = ("lap", "brb", "bar")
+COMPONENTS = ("ux", "uy", "uz")
+
+
+class ContinuumError(ValueError):
+    """The mesh or the interface cannot make a valid jointed model (names what and where)."""
+
+
+@dataclass(frozen=True)
+class Bolt:
+    """A bolt: its axis crosses the joint plane at (x, z); ``force`` N is spread over the
+    contact nodes within ``radius`` m, in proportion to their areas (the preload patch)."""
+
+    x: float
+    z: float
+    radius: float
+    force: float
+
+
+@dataclass(frozen=True)
+class ContinuumSpec:
+    geometry: str = "lap"  # "lap" | "brb" | "bar"
+    dim: int = 3
+    length: float = 0.3  # m, each bar (brb: each half, 0.42)
+    height: float = 0.006  # m, each bar (brb: the square section's side, 0.0254)
+    width: float = 0.025  # m (2D: the plane-stress thickness)
+    overlap: float = 0.03  # m
+    clamped: tuple[bool, bool] = (True, True)
+    size: float = 0.005  # m, element size along x and z
+    size_normal: float | None = None  # m, along y (default: size)
+    degree: int = 2
+    young: float = 2.1e11  # Pa
+    poisson: float = 0.3
+    density: float = 7850.0  # kg/m^3
+    kt: float = 0.0  # N/m^3: tangential contact stiffness per area (or kt_total)
+    kn: float = 0.0  # N/m^3
+    kt_total: float = 0.0  # N/m for the whole joint, spread by area
+    kn_total: float = 0.0
+    mu: float = 0.3
+    pressure: float = 0.0  # Pa, uniform preload over the contact surface
+    bolts: tuple[Bolt, ...] = ()
+    patches_only: bool = False  # only the nodes under a bolt patch are contact pairs
+    rayleigh_alpha: float = 0.0  # 1/s
+    rayleigh_beta: float = 0.0  # s
+    force_at: tuple[float, ...] = (0.15, 0.0, 0.0125)  # m, the force acts at the nearest node
+    force_dir: str = "uy"
+    force: float = 1.0  # N
+    outputs: tuple[tuple[str, tuple[float, ...], str], ...] = ()  # (name, point, component)
+    mesh_file: str | None = None  # write the gmsh mesh here (through meshio)
+    source: str = "<continuum>"  # the scene file, for error messages
+
+    def layout(self) -> geo.Layout:
+        if self.geometry == "lap":
+            return geo.lap_layout(self.dim, self.length, self.height, self.width, self.overlap, self.clamped)
+        if self.geometry == "brb":
+            return geo.brb_layout(self.length, self.height, self.overlap, self.clamped)
+        return geo.bar_layout(self.dim, self.length, self.height, self.width, self.clamped[1])
+
+
+@dataclass
+class Mesh:
+    """The assembled, gathered model before contact and supports are applied (all ranks)."""
+
+    dim: int
+    coords: np.ndarray  # (num_nodes, 3), canonical order
+    sub: np.ndarray  # (num_nodes,) 0 = A, 1 = B
+    K: sp.csr_matrix  # (dim*num_nodes,)^2, N/m
+    M: sp.csr_matrix  # kg
+    clamped: np.ndarray  # node ids
+    contact: tuple[np.ndarray, np.ndarray]  # node ids of the contact faces of A and B
+    area: np.ndarray  # (num_nodes,) consistent nodal area on the contact faces, m^2
+    normal: np.ndarray  # (num_nodes, 3) area-weighted outward normal on the contact faces
+    extent: float
+    timings: dict = field(default_factory=dict)
+    cells: int = 0
+
+
+def build_mesh(spec: ContinuumSpec, comm=None) -> Mesh:
+    """Stages 1-3: gmsh, dolfinx assembly, gather in canonical order."""
+    compat.import_dolfinx()
+    import gmsh
+    import ufl
+    from mpi4py import MPI
+
+    comm = comm or MPI.COMM_WORLD
+    layout = spec.layout()
+    t0 = time.perf_counter()
+    geo.ensure_gmsh()
+    try:
+        if comm.rank == 0:
+            geo.build(layout, spec.size, size_normal=spec.size_normal)
+            if spec.mesh_file:
+                _write_mesh(spec.mesh_file, layout.dim)
+        mesh, cell_tags, facet_tags = compat.model_to_mesh(gmsh.model, comm, layout.dim)
+    finally:
+        if comm.rank == 0:
+            gmsh.model.remove()
+    t1 = time.perf_counter()
+
+    d = layout.dim
+    V = compat.vector_space(mesh, spec.degree)
+    W = compat.scalar_space(mesh, spec.degree)
+    E, nu, rho = spec.young, spec.poisson, spec.density
+    mu_l = E / (2 * (1 + nu))
+    lam = E * nu / ((1 + nu) * (1 - 2 * nu))
+    thick = 1.0
+    if d == 2:  # plane stress, per unit thickness times the width
+        lam = 2 * lam * mu_l / (lam + 2 * mu_l)
+        thick = spec.width
+    u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
+
+    def eps(w):
+        return ufl.sym(ufl.grad(w))
+
+    def sigma(w):
+        return 2 * mu_l * eps(w) + lam * ufl.tr(eps(w)) * ufl.Identity(d)
+
+    Kp = compat.assemble_matrix(thick * ufl.inner(sigma(u), eps(v)) * ufl.dx)
+    Mp = compat.assemble_matrix(thick * rho * ufl.inner(u, v) * ufl.dx)
+    t2 = time.perf_counter()
+
+    # canonical node order from the vector space's blocks
+    gid, X = compat.owned_blocks(V)
+    sub_local = np.zeros(V.dofmap.index_map.size_local + V.dofmap.index_map.num_ghosts, dtype=np.int8)
+    sub_local[compat.cell_blocks(V, cell_tags.find(geo.CELL_B))] = 1
+    n_own = gid.size
+    all_gid = _allgather(comm, gid)
+    all_X = _allgather(comm, X)
+    all_sub = _allgather(comm, sub_local[:n_own])
+    num_nodes = all_gid.size
+    q = 1e-9 * layout.extent
+    key = np.round(all_X / q).astype(np.int64)
+    order = np.lexsort((key[:, 0], key[:, 1], key[:, 2], all_sub))
+    kk = np.column_stack([all_sub[order], key[order]])
+    if num_nodes > 1 and np.any(np.all(kk[1:] == kk[:-1], axis=1)):
+        raise ContinuumError(f"{spec.source}: two nodes of one substructure coincide: the mesh is broken")
+    canon = np.empty(num_nodes, dtype=np.int64)  # global block id -> canonical node id
+    canon[all_gid[order]] = np.arange(num_nodes)
+    coords = all_X[order]
+    sub = all_sub[order].astype(np.int32)
+
+    K = _gather_matrix(Kp, canon, d, comm, num_nodes)
+    M = _gather_matrix(Mp, canon, d, comm, num_nodes)
+
+    # scalar space: node map by position, then facet nodes, areas and normals
+    wgid, WX = compat.owned_blocks(W)
+    w_sub = np.zeros(W.dofmap.index_map.size_local + W.dofmap.index_map.num_ghosts, dtype=np.int8)
+    w_sub[compat.cell_blocks(W, cell_tags.find(geo.CELL_B))] = 1
+    w_canon = _match_rows(np.column_stack([sub, np.round(coords / q).astype(np.int64)]),
+                          np.column_stack([w_sub[:wgid.size], np.round(WX / q).astype(np.int64)]))
+    if np.any(w_canon < 0):
+        raise ContinuumError(f"{spec.source}: the scalar and vector spaces disagree on the nodes")
+    imapW = W.dofmap.index_map
+    nW = imapW.size_local
+
+    def facet_nodes(tag):
+        loc = compat.facet_blocks(W, facet_tags, tag)
+        loc = loc[loc < nW]
+        return np.unique(_allgather(comm, w_canon[loc]))
+
+    def gather_nodal(values):
+        out = np.zeros(num_nodes)
+        out[_allgather(comm, w_canon)] = _allgather(comm, values[:nW])
+        return out
+
+    clamped = np.unique(np.concatenate([facet_nodes(t) for t in (geo.CLAMP_A, geo.CLAMP_B)])) \
+        if facet_tags is not None else np.zeros(0, dtype=np.int64)
+    area = np.zeros(num_nodes)
+    normal = np.zeros((num_nodes, 3))
+    contact = (np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64))
+    if layout.contact is not None:
+        ds = ufl.Measure("ds", domain=mesh, subdomain_data=facet_tags)
+        w = ufl.TestFunction(W)
+        nrm = ufl.FacetNormal(mesh)
+        contact = (facet_nodes(geo.CONTACT_A), facet_nodes(geo.CONTACT_B))
+        for tag in (geo.CONTACT_A, geo.CONTACT_B):
+            area += gather_nodal(compat.assemble_vector(thick * w * ds(tag)))
+            for i in range(d):
+                normal[:, i] += gather_nodal(compat.assemble_vector(thick * w * nrm[i] * ds(tag)))
+    t3 = time.perf_counter()
+    Kp.destroy()
+    Mp.destroy()
+    return Mesh(d, coords, sub, K, M, clamped, contact, area, normal, layout.extent,
+                {"mesh_s": t1 - t0, "assembly_s": t2 - t1, "gather_s": t3 - t2},
+                cells=mesh.topology.index_map(d).size_global)
+
+
+def _allgather(comm, a: np.ndarray) -> np.ndarray:
+    """Concatenation over ranks of a numpy array (along axis 0), by buffer, not by pickle."""
+    a = np.ascontiguousarray(a)
+    if comm.size == 1:
+        return a.copy()
+    rows = np.array(comm.allgather(a.shape[0]))
+    per_row = int(np.prod(a.shape[1:], dtype=np.int64))
+    out = np.empty((rows.sum(),) + a.shape[1:], dtype=a.dtype)
+    from mpi4py import MPI
+
+    mpitype = MPI._typedict[a.dtype.char]
+    comm.Allgatherv(a, [out, rows * per_row, None, mpitype])
+    return out
+
+
+def _match_rows(ref: np.ndarray, query: np.ndarray) -> np.ndarray:
+    """Index in ``ref`` of each row of ``query`` (integer rows), -1 where absent; vectorised."""
+    both = np.vstack([ref, query])
+    _, inv = np.unique(both, axis=0, return_inverse=True)
+    inv = inv.ravel()
+    where = np.full(inv.max() + 1, -1, dtype=np.int64)
+    where[inv[:ref.shape[0]]] = np.arange(ref.shape[0])
+    return where[inv[ref.shape[0]:]]
+
+
+def _gather_matrix(A, canon: np.ndarray, d: int, comm, num_nodes: int) -> sp.csr_matrix:
+    """The PETSc matrix (block size d) on every rank as scipy CSR in canonical order."""
+    indptr, indices, data = A.getValuesCSR()
+    r0, r1 = A.getOwnershipRange()
+    rows = np.repeat(np.arange(r0, r1), np.diff(indptr))
+
+    def to_canon(i):
+        return d * canon[i // d] + i % d
+
+    r = _allgather(comm, to_canon(rows))
+    c = _allgather(comm, to_canon(indices.astype(np.int64)))
+    v = _allgather(comm, data)
+    n = d * num_nodes
+    return sp.csr_matrix((v, (r, c)), shape=(n, n))
+
+
+def _write_mesh(path: str, dim: int):
+    """The gmsh mesh of the current model, through meshio (format from the suffix: .msh, .vtu, .xdmf)."""
+    import gmsh
+    import meshio
+
+    tags, xyz, _ = gmsh.model.mesh.getNodes()
+    index = {int(t): i for i, t in enumerate(tags)}
+    cells = []
+    kinds = {3: "quad", 5: "hexahedron", 2: "triangle", 4: "tetra"}
+    for etype, _, nodes in zip(*gmsh.model.mesh.getElements(dim)):
+        name = kinds.get(int(etype))
+        if name is None:
+            continue
+        nper = {"quad": 4, "hexahedron": 8, "triangle": 3, "tetra": 4}[name]
+        conn = np.array([index[int(t)] for t in nodes]).reshape(-1, nper)
+        cells.append((name, conn))
+    points = xyz.reshape(-1, 3)[:, :dim] if dim == 2 else xyz.reshape(-1, 3)
+    out = Path(path)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = out.with_name(out.stem + ".tmp" + out.suffix)
+    tag = [np.zeros(len(c[1]), dtype=int) for c in cells]
+    meshio.write(tmp, meshio.Mesh(points, cells, cell_data={"gmsh:physical": tag, "gmsh:geometrical": tag}), **({"file_format": "gmsh22", "binary": False}
+                                                      if out.suffix == ".msh" else {}))
+    tmp.replace(out)
+
+
+def match_interface(mesh: Mesh, source: str = "<continuum>") -> tuple[np.ndarray, np.ndarray]:
+    """Pairs (a, b) of coincident contact nodes of A and B, checked to 1e-10 of the model size."""
+    from scipy.spatial import cKDTree
+
+    a, b = mesh.contact
+    if a.size == 0 or b.size == 0:
+        raise ContinuumError(f"{source}: the contact surface is empty (A has {a.size} nodes, B has {b.size}): "
+                             f"the substructures do not overlap")
+    tol = 1e-10 * mesh.extent
+    dist, j = cKDTree(mesh.coords[b]).query(mesh.coords[a])
+    bad = dist > tol
+    if a.size != b.size or np.any(bad) or np.unique(j).size != j.size:
+        worst = float(dist.max())
+        raise ContinuumError(
+            f"{source}: the contact surfaces do not match node to node: A has {a.size} nodes, B has {b.size}; "
+            f"{int(bad.sum())} A nodes have no B node within {tol:.1e} m (worst {worst:.3e} m). "
+            f"Mesh both faces with the same divisions (the builders do), or use matching/periodic meshing")
+    return a, b[j]
+
+
+def frames(normal: np.ndarray, dim: int) -> np.ndarray:
+    """Orthonormal frames (P, m, dim): rows t1, [t2], n.  t1 is the x axis projected on the
+    tangent plane (z in the rare case that n is along x)."""
+    n = normal[:, :dim] / np.linalg.norm(normal[:, :dim], axis=1, keepdims=True)
+    if dim == 2:
+        t1 = np.column_stack([n[:, 1], -n[:, 0]])
+        t1 *= np.where(t1[:, :1] < 0, -1.0, 1.0)
+        return np.stack([t1, n], axis=1)
+    ref = np.tile([1.0, 0.0, 0.0], (n.shape[0], 1))
+    along = np.abs(n[:, 0]) > 0.9
+    ref[along] = [0.0, 0.0, 1.0]
+    t1 = ref - np.sum(ref * n, axis=1, keepdims=True) * n
+    t1 /= np.linalg.norm(t1, axis=1, keepdims=True)
+    t2 = np.cross(n, t1)
+    return np.stack([t1, t2, n], axis=1)
+
+
+def create_continuum(spec: ContinuumSpec, comm=None, mesh: Mesh | None = None) -> Structure:
+    """The jointed continuum as a Structure (clamped DOFs eliminated), replicated on every rank."""
+    mesh = mesh or build_mesh(spec, comm)
+    d = mesh.dim
+    nn = mesh.coords.shape[0]
+    n_all = d * nn
+    t0 = time.perf_counter()
+    groups = ()
+    pair_info = {}
+    if mesh.contact[0].size or mesh.contact[1].size:
+        a, b = match_interface(mesh, spec.source)
+        area = 0.5 * (mesh.area[a] + mesh.area[b])
+        if np.any(area <= 0):
+            raise ContinuumError(f"{spec.source}: {int(np.sum(area <= 0))} contact nodes have zero area "
+                                 f"(degree-2 triangles do): use quadrilateral/hexahedral elements or degree 1")
+        xz = mesh.coords[a][:, [0, 2]]
+        N0 = spec.pressure * area
+        under = np.zeros(a.size, dtype=bool)
+        for k, bolt in enumerate(spec.bolts):
+            inside = np.hypot(xz[:, 0] - bolt.x, xz[:, 1] - bolt.z) <= bolt.radius
+            if not inside.any():
+                raise ContinuumError(f"{spec.source}: bolt {k} at x = {bolt.x}, z = {bolt.z} m with radius "
+                                     f"{bolt.radius} m covers no contact node")
+            N0 = N0 + bolt.force * inside * area / area[inside].sum()
+            under |= inside
+        keep = under if spec.patches_only else np.ones(a.size, dtype=bool)
+        a, b, area, N0 = a[keep], b[keep], area[keep], N0[keep]
+        total = area.sum()
+        kt = spec.kt * area + spec.kt_total * area / total
+        kn = spec.kn * area + spec.kn_total * area / total
+        R = frames(mesh.normal[a], d)  # (P, m, d)
+        P, m = a.size, d
+        rows = np.repeat(np.arange(P * m), 2 * d)
+        cols = np.concatenate([np.concatenate([d * a[p] + np.arange(d), d * b[p] + np.arange(d)])
+                               for p in range(P) for _ in range(m)])
+        vals = np.concatenate([np.concatenate([R[p, i], -R[p, i]]) for p in range(P) for i in range(m)])
+        gap_all = sp.csr_matrix((vals, (rows, cols)), shape=(P * m, n_all))
+        pairs = JenkinsPairs(kt=kt, kn=kn, mu=np.full(P, spec.mu), N0=N0, num_tangential=d - 1, has_normal=True)
+        pair_info = {"num_pairs": int(P), "contact_area_m2": float(total), "preload_N": float(N0.sum())}
+    clamped_dofs = (d * mesh.clamped[:, None] + np.arange(d)[None, :]).ravel()
+    free = np.setdiff1d(np.arange(n_all), clamped_dofs)
+    K = mesh.K[free][:, free].tocsr()
+    M = mesh.M[free][:, free].tocsr()
+    node_of = free // d
+    comp_of = free % d
+    names = tuple(f"{'AB'[mesh.sub[i]]}.{i}.{COMPONENTS[c]}" for i, c in zip(node_of, comp_of))
+    index = {nm: k for k, nm in enumerate(names)}
+    if pair_info:
+        coords = mesh.coords[a]
+        groups = (ContactGroup(pairs, gap_all[:, free].tocsr(), names=tuple(f"pair{p}" for p in range(P)),
+                               coords=coords),)
+
+    def nearest(point, comp, what):
+        p = np.zeros(3)
+        p[:len(point)] = point
+        cand = np.flatnonzero(~np.isin(np.arange(nn), mesh.clamped))
+        i = cand[np.argmin(np.linalg.norm(mesh.coords[cand] - p, axis=1))]
+        if comp not in COMPONENTS[:d]:
+            raise ContinuumError(f"{spec.source}: {what}: component {comp!r} is not one of {COMPONENTS[:d]}")
+        return index[f"{'AB'[mesh.sub[i]]}.{i}.{comp}"], i
+
+    fc = np.zeros(free.size)
+    fi, fnode = nearest(spec.force_at, spec.force_dir, "[force]")
+    fc[fi] = spec.force
+    outputs = {}
+    for name, point, comp in spec.outputs:
+        outputs[f"{name}.{comp}"] = nearest(point, comp, f"[output].{name}")[0]
+    D = (spec.rayleigh_alpha * M + spec.rayleigh_beta * K).tocsr()
+    timings = dict(mesh.timings, contact_s=time.perf_counter() - t0)
+    info = {"kind": f"continuum{d}d", "geometry": spec.geometry, "free_dofs": int(free.size),
+            "nodes": int(nn), "cells": int(mesh.cells), "degree": spec.degree, "timings": timings,
+            "supported": bool(mesh.clamped.size), "force_node": mesh.coords[fnode].tolist(), **pair_info}
+    return Structure(K=K, M=M, D=D, fc=fc, fs=np.zeros_like(fc), contacts=groups, dof_names=names,
+                     outputs=outputs, info=info, substructure=mesh.sub[node_of].astype(np.int32))

@@ -1,0 +1,275 @@
+"""The FEniCSx continuum models: gmsh meshes, dolfinx assembly, matched interfaces, SLEPc/MUMPS
+offline solves, the exact harmonic condensation, and clear errors for bad meshes.
+
+References: Euler-Bernoulli frequencies (closed form), the beam2d model of the same joint,
+and the full-order HBM residual (the condensation must reproduce it to round-off).
+"""
+from __future__ import annotations
+
+import dataclasses
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pytest.importorskip("dolfinx")
+
+from jointfem.continuation.arclength import NewtonOptions, solve_newton  # noqa: E402
+from jointfem.fem import geometry as geo  # noqa: E402
+from jointfem.fem.continuum import ContinuumError, ContinuumSpec, build_mesh, create_continuum  # noqa: E402
+from jointfem.frf import compute_scales, make_problem  # noqa: E402
+from jointfem.hbm.harmonics import Harmonics  # noqa: E402
+from jointfem.linalg import LinAlgError, eigen  # noqa: E402
+from jointfem.rom.common import ExactModel  # noqa: E402
+from jointfem.scene import SceneError, check_solvable, create_structure, load_scene, parse_scene  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+E, RHO, H, B, L = 2.1e11, 7850.0, 0.006, 0.025, 0.3
+BETA_CANT = np.array([1.8751040687, 4.6940911330, 7.8547574382])  # cantilever beta_n L
+BETA_CC = np.array([4.7300407449, 7.8532046241, 10.9956078380])  # clamped-clamped
+
+
+def euler_bernoulli(beta):
+    return beta**2 / L**2 * np.sqrt(E * H**2 / 12 / RHO)  # rad/s, bending about the thin axis
+
+
+def bending_y(structure, num=10):
+    """Frequencies (rad/s) of the modes dominated by uy (bending in the thin direction)."""
+    w2, Phi = eigen(structure.K_lin, structure.M, num)
+    comp = np.array([n.rsplit(".", 1)[1] for n in structure.dof_names])
+    share = (Phi[comp == "uy"] ** 2).sum(axis=0) / (Phi**2).sum(axis=0)
+    return np.sqrt(w2[share > 0.9])
+
+
+@pytest.mark.parametrize("dim,clamped_end,beta", [(3, False, BETA_CANT), (3, True, BETA_CC), (2, False, BETA_CANT)])
+def test_bar_against_euler_bernoulli(dim, clamped_end, beta):
+    """Q2 bars (6 mm thick, 300 mm long) give the first 3 bending frequencies within 1 % of
+    Euler-Bernoulli.  What is left is physics the beam theory drops: shear and rotary inertia
+    lower mode 3 by about 0.4 % for h/L = 0.02 (Timoshenko: (beta_3 r / L)^2 (1 + E / kappa G) / 2),
+    and in 3D the 25 mm width raises it a little (the plate modulus E/(1-nu^2) is the +4.6 % bound
+    of a very wide strip); docs/validation.md has the mesh convergence."""
+    spec = ContinuumSpec(geometry="bar", dim=dim, clamped=(True, clamped_end), size=0.01, size_normal=0.006)
+    w = bending_y(create_continuum(spec))[:3]
+    err = w / euler_bernoulli(beta) - 1
+    assert np.all(np.abs(err) < 0.01), err
+
+
+@pytest.fixture(scope="module")
+def lap3d():
+    spec = ContinuumSpec(geometry="lap", dim=3, size=0.01, size_normal=0.006, kt_total=3e4, kn=2e11,
+                         pressure=8e4, outputs=(("a_mid", (0.15, 0.0, 0.0125), "uy"),))
+    return spec, create_continuum(spec)
+
+
+def test_interface_pairs_areas_frames(lap3d):
+    """Matched pairs cover the overlap; consistent nodal areas sum to its area; the frames are
+    (x, -z, y) for the +y outward normal of A; the preload and stiffness totals are kept."""
+    spec, s = lap3d
+    g = s.contacts[0]
+    pr = g.pairs
+    nx = 2 * geo.divisions(spec.overlap, spec.size) + 1  # Q2 nodes along the overlap
+    nz = 2 * geo.divisions(spec.width, spec.size) + 1
+    assert pr.num_pairs == nx * nz
+    area = spec.overlap * spec.width
+    assert pr.N0.sum() == pytest.approx(spec.pressure * area, rel=1e-12)
+    assert pr.kt.sum() == pytest.approx(3e4, rel=1e-12)
+    assert pr.kn.sum() == pytest.approx(2e11 * area, rel=1e-12)
+    assert np.all(pr.N0 > 0)
+    G = g.gap.toarray()
+    P = pr.num_pairs
+    # each row is one unit direction on A's node minus the same on B's: normal rows pick uy
+    comp = np.array([n.rsplit(".", 1)[1] for n in s.dof_names])
+    n_rows = G[2::3]
+    assert np.allclose(np.abs(n_rows).sum(axis=1), 2.0)
+    assert np.all(comp[np.argmax(n_rows, axis=1)] == "uy")
+    assert np.allclose(n_rows.sum(axis=1), 0.0)
+    assert np.allclose(np.abs(G[0::3][:, comp == "ux"]).sum(axis=1), 2.0)
+    assert np.all(g.coords[:, 1] == pytest.approx(spec.height))
+    assert g.coords[:, 0].min() == pytest.approx(spec.length - spec.overlap)
+    assert P == len(g.names)
+
+
+def test_lap_joint_against_beam2d(lap3d):
+    """Stuck, the continuum lap joint and the beam2d model of the same joint agree on the
+    first two bending modes within 2.5 % (docs/validation.md explains the rest: beam2d's
+    rotational springs against the continuum's distributed normal stiffness)."""
+    from jointfem.models.beam2d import Beam2DSpec, create_beam2d
+
+    _, s = lap3d
+    beam = create_beam2d(Beam2DSpec())
+    wb = np.sqrt(eigen(beam.K_lin, beam.M, 2)[0])
+    wc = bending_y(s)[:2]
+    assert np.all(np.abs(wc / wb - 1) < 0.025), (wc / 2 / np.pi, wb / 2 / np.pi)
+
+
+def test_brb_free_free_modes():
+    """The free-free Brake-Reuss-like beam: six rigid-body modes, found with a negative shift,
+    then the elastic modes; the first bending mode lies between the fully open and the
+    monolithic bounds (docs/validation.md compares it with the published 168-170 Hz)."""
+    spec = ContinuumSpec(geometry="brb", dim=3, length=0.42, height=0.0254, width=0.0254, overlap=0.12,
+                         clamped=(False, False), size=0.0254, size_normal=0.0127, degree=2,
+                         young=192.85e9, poisson=0.29, density=7857.8, kt=1e12, kn=1e12,
+                         force_at=(0.3, 0.0, 0.0127))
+    s = create_continuum(spec)
+    assert not s.info["supported"]
+    w2, _ = eigen(s.K_lin, s.M, 10, sigma=-1e3)
+    f = np.sqrt(np.abs(w2)) / 2 / np.pi
+    assert np.all(f[:6] < 1.0), f  # rigid-body modes
+    Ltot, a = 0.72, 0.0254
+    mono = 22.3733 / (2 * np.pi * Ltot**2) * np.sqrt(192.85e9 * a**2 / 12 / 7857.8)  # free-free EB, Hz
+    assert 0.5 * mono < f[6] < 1.02 * mono, (f[6], mono)
+
+
+def test_exact_condensation_equals_full_order():
+    """Newton at fixed omega on the full 2D lap joint and on its exact condensation (stick and
+    separation at 1700 rad/s, 3 N) land on the same gaps and outputs to 1e-8."""
+    s = create_structure(load_scene(ROOT / "demos" / "lap2d.toml"))
+    h = Harmonics(3, 512)
+    full, ex = make_problem(s, h), make_problem(ExactModel(s), h)
+    w = 1700.0
+    opts = NewtonOptions(tol=1e-12, max_iter=60)
+
+    def solve(pb):
+        def fun(U, lam):
+            ev = pb.evaluate(U, lam)
+            return ev.R, ev.J, ev.dR_domega
+        xs = np.tile(pb.scales(1550.0, 1800.0), h.num_hc)
+        return solve_newton(fun, pb.linear_solution(w), w, x_scale=xs, r_scale=3.0, options=opts)[0]
+
+    U, Y = solve(full), solve(ex)
+    states = full.states(U, w)
+    assert (states == 2).any() and (states == 0).any()  # separates and sticks: a real test of the law
+    Yf = (U.reshape(h.num_hc, -1) @ ex.C.T).ravel()
+    assert np.abs(Y - Yf).max() <= 1e-8 * np.abs(Yf).max()
+
+
+def test_exact_condensation_jacobian_fd():
+    """The condensed residual's Jacobian and omega-derivative against central differences."""
+    s = create_structure(load_scene(ROOT / "demos" / "lap2d.toml"))
+    h = Harmonics(2, 128)
+    ex = make_problem(ExactModel(s), h)
+    w = 1700.0
+    rng = np.random.default_rng(3)
+    Y = ex.linear_solution(w) * 2.0 + 1e-7 * rng.standard_normal(ex.num_unknowns)
+    ev = ex.evaluate(Y, w)
+    d = 1e-7 * np.abs(Y).max() * rng.standard_normal(Y.size)
+    fd = 0.5 * (ex.evaluate(Y + d, w, jacobian=False).R - ex.evaluate(Y - d, w, jacobian=False).R)
+    assert np.abs(fd - ev.J @ d).max() <= 1e-5 * np.abs(ev.J @ d).max()
+    dw = 0.2  # rad/s: S = R^-1 of an ill-conditioned receptance carries ~1e-9 relative round-off
+    fdw = (ex.evaluate(Y, w + dw, jacobian=False).R - ex.evaluate(Y, w - dw, jacobian=False).R) / (2 * dw)
+    assert np.abs(fdw - ev.dR_domega).max() <= 1e-5 * np.abs(ev.dR_domega).max()
+
+
+def test_petsc_and_scipy_backends_agree(lap3d, monkeypatch):
+    """SLEPc shift-invert and MUMPS give the modes and static solves of ARPACK and SuperLU."""
+    from jointfem import linalg
+
+    _, s = lap3d
+    assert linalg.backend(s.num_dofs) == "petsc"
+    w_p, Phi_p = linalg.eigen(s.K_lin, s.M, 6)
+    X_p = linalg.Factorized(s.K_lin).solve(s.fc)
+    monkeypatch.setenv("JOINTFEM_LINALG", "scipy")
+    w_s, Phi_s = linalg.eigen(s.K_lin, s.M, 6)
+    X_s = linalg.Factorized(s.K_lin).solve(s.fc)
+    assert np.allclose(w_p, w_s, rtol=1e-10)
+    assert np.abs(np.abs(Phi_p.T @ (s.M @ Phi_s)) - np.eye(6)).max() < 1e-8
+    assert np.abs(X_p - X_s).max() <= 1e-10 * np.abs(X_s).max()
+
+
+# ---- bad meshes and bad scenes -----------------------------------------------------------------
+
+def _spec_with_layout(monkeypatch, layout, **kw):
+    spec = ContinuumSpec(geometry="lap", dim=2, size=0.01, size_normal=0.006, kt_total=3e4, kn=2e11, **kw)
+    monkeypatch.setattr(ContinuumSpec, "layout", lambda self: layout)
+    return spec
+
+
+def test_unmatched_interface_is_refused(monkeypatch):
+    """Shift B's overlap block by 1 mm along x: the faces no longer match node to node."""
+    lay = geo.lap_layout(2, L, H, B, 0.03)
+    boxes = list(lay.boxes)
+    boxes[2] = dataclasses.replace(boxes[2], x=boxes[2].x + 0.001)
+    boxes[3] = dataclasses.replace(boxes[3], x=boxes[3].x + 0.001)
+    bad = dataclasses.replace(lay, boxes=tuple(boxes), contact=(lay.contact[0], lay.contact[1] + 0.001, H))
+    with pytest.raises(ContinuumError, match="do not match node to node"):
+        create_continuum(_spec_with_layout(monkeypatch, bad))
+
+
+def test_empty_contact_surface_is_refused(monkeypatch):
+    """B lifted 1 mm above A: no face lies on the joint plane."""
+    lay = geo.lap_layout(2, L, H, B, 0.03)
+    boxes = [dataclasses.replace(b, y=b.y + 0.001) if b.sub == 1 else b for b in lay.boxes]
+    bad = dataclasses.replace(lay, boxes=tuple(boxes))
+    with pytest.raises(ContinuumError, match="contact surface is empty"):
+        create_continuum(_spec_with_layout(monkeypatch, bad))
+
+
+def test_free_free_substructure_refused_before_work(tmp_path):
+    """A lap joint with B unsupported is refused by the scene check (no meshing), naming the key;
+    building its penalty ROM anyway fails with a clear LinAlgError, not a NaN."""
+    data = load_scene(ROOT / "demos" / "lap2d.toml").data
+    data = {**data, "geometry": {**data["geometry"], "clamped": ["A"]}}
+    scene = parse_scene(data, tmp_path / "free.toml")
+    with pytest.raises(SceneError, match=r"geometry.clamped.*substructure B has no supports"):
+        check_solvable(scene)
+    s = create_structure(scene)
+    from jointfem.rom import build_rom
+    with pytest.raises(LinAlgError, match="rigid-body"):
+        make_problem(ExactModel(s), Harmonics(1, 8))  # harmonic 0: K of the free B is singular
+    assert s.info["supported"]  # A is clamped; B hangs on the stuck joint only
+    build_rom(s, "penalty")  # the stuck joint holds B: the linearised model is regular
+
+
+@pytest.mark.parametrize("section,key,value,match", [
+    ("mesh", "size", 0.05, "at least one element in the joint"),
+    ("mesh", "degree", 3, "must be 1 or 2"),
+    ("force", "at", [0.9, 0.0], "outside the model's bounding box"),
+    ("contact", "kt", 1e9, "give exactly one of kt"),
+    ("geometry", "shape", "ring", "must be one of"),
+])
+def test_bad_continuum_scene(tmp_path, section, key, value, match):
+    data = load_scene(ROOT / "demos" / "lap2d.toml").data
+    data = {**data, section: {**data[section], key: value}}
+    with pytest.raises(SceneError, match=match) as exc:
+        parse_scene(data, tmp_path / "bad.toml")
+    assert f"{section}.{key}" in str(exc.value)
+
+
+# ---- MPI --------------------------------------------------------------------------------------
+
+def _mpirun():
+    cmd = ["mpirun", "--oversubscribe", "-n", "2"]
+    if hasattr(os, "geteuid") and os.geteuid() == 0:
+        cmd.insert(1, "--allow-run-as-root")
+    return cmd
+
+
+@pytest.mark.slow
+def test_mpi_two_ranks_equal_serial(tmp_path):
+    """`mpirun -n 2 python -m jointfem frf` (distributed assembly, SLEPc and MUMPS) gives the
+    serial FRF to 1e-8, written once."""
+    scene = tmp_path / "lap2d.toml"
+    text = (ROOT / "demos" / "lap2d.toml").read_text()
+    scene.write_text(text.replace("amplitude = 3.0", "amplitude = 1.0").replace("size = 0.01", "size = 0.0025")
+                     .replace("size_normal = 0.006", "size_normal = 0.003"))
+    from jointfem import linalg
+    n = create_structure(load_scene(scene)).num_dofs
+    assert linalg.backend(n) == "petsc", n  # big enough that SLEPc and MUMPS run distributed
+    env = dict(os.environ, JOINTFEM_LINALG="petsc")
+    args = [sys.executable, "-m", "jointfem", "frf", str(scene), "--method", "penalty", "--modes", "10",
+            "--quiet", "--out"]
+    subprocess.run(args + [str(tmp_path / "serial")], check=True, env=env, cwd=ROOT, timeout=600)
+    subprocess.run(_mpirun() + args + [str(tmp_path / "mpi")], check=True, env=env, cwd=ROOT, timeout=600)
+    a = np.load(tmp_path / "serial" / "branch.npz")
+    b = np.load(tmp_path / "mpi" / "branch.npz")
+    assert a["omega"].shape == b["omega"].shape
+    assert np.abs(a["omega"] - b["omega"]).max() <= 1e-8 * a["omega"].max()
+    for k in a.files:
+        if k.startswith("amp") or k == "U":
+            assert np.abs(a[k] - b[k]).max() <= 1e-8 * np.abs(a[k]).max(), k
+    import json
+    sa = json.loads((tmp_path / "mpi" / "summary.json").read_text())
+    assert sa["mpi_ranks"] == 2
