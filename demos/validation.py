@@ -156,8 +156,9 @@ def brb(lines):
               "interface carries load and how stiffly, which this model takes as inputs (contact stiffness per "
               "area, the patches under the bolts), not from measurement. A contact stiffness of 1e13 N/m^3 "
               "equals the shear compliance of about 7.5 mm of steel (G / k), comparable to the 12.7 mm half "
-              "thickness, so it is far from bonded; 1e15 N/m^3 nearly bonds the halves, yet the beam stays "
-              "below the monolithic bar, because the overlap's free steps remain. Contact only under the bolts "
+              "thickness, so it is far from bonded. 1e15 N/m^3 nearly bonds the halves, yet the beam stays "
+              "well below the monolithic bar: where one half's end face meets the other's shoulder (x = 0.30 "
+              "and 0.42 m) the faces are free, not in contact, and act as two half-depth cracks. Contact only under the bolts "
               "is softer, and grows stiffer with the patch radius: a real bolt's pressure cone spreads over "
               "about 1.5-2 washer radii. The bolts' own mass and stiffness (heads, nuts, shanks) are not "
               "modelled.", ""]

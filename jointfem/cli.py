@@ -38,7 +38,7 @@ def sweep_options(scene: Scene):
     return SweepOptions(
         omega_start=s.omega_start, omega_end=s.omega_end, harmonics=Harmonics(s.harmonics, s.samples),
         continuation=ContinuationOptions(ds0=s.ds0, ds_min=s.ds_min, ds_max=s.ds_max, max_points=s.max_points,
-                                         newton=NewtonOptions(tol=s.tol)))
+                                         newton=NewtonOptions(tol=s.tol, relaxed_kink_tol=max(s.kink_tol, s.tol))))
 
 
 def solve_scene(scene: Scene, *, progress: bool = False, method: str = "full", rom_options: RomOptions = RomOptions()):

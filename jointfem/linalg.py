@@ -225,17 +225,37 @@ class _MumpsFactorized(Factorized):
         one = B.ndim == 1
         B = B.reshape(self.n, -1)
         r0, r1 = self._b.getOwnershipRange()
-        X = np.empty_like(B)
-        for j in range(B.shape[1]):
-            self._b.setArray(B[r0:r1, j])
+        if B.shape[1] > 1:
+            X = self._mat_solve(B, r0, r1)
+        else:
+            self._b.setArray(B[r0:r1, 0])
             self._ksp.solve(self._b, self._x)
             if self._ksp.getConvergedReason() < 0:
                 raise LinAlgError(f"{self.what}: MUMPS solve failed (reason {self._ksp.getConvergedReason()})")
-            X[:, j] = _gather_vec(self._x)
+            X = _gather_vec(self._x)[:, None]
         if not np.all(np.isfinite(X)):
             raise LinAlgError(f"{self.what} is singular: the MUMPS solution is not finite "
                               f"(a substructure without supports?)")
         return X[:, 0] if one else X
+
+    def _mat_solve(self, B: np.ndarray, r0: int, r1: int) -> np.ndarray:
+        """All columns at once (MatMatSolve with dense right-hand sides): one MUMPS call, not one per column."""
+        from petsc4py import PETSc
+
+        m = B.shape[1]
+        comm = _comm()
+        Bp = PETSc.Mat().createDense(size=((r1 - r0, self.n), (PETSc.DECIDE, m)), comm=comm)
+        Bp.setUp()
+        Bp.getDenseArray()[:] = B[r0:r1]
+        Bp.assemble()
+        Xp = Bp.duplicate()
+        self._ksp.getPC().getFactorMatrix().matSolve(Bp, Xp)
+        local = Xp.getDenseArray().copy()
+        Bp.destroy()
+        Xp.destroy()
+        if comm.getSize() == 1:
+            return local
+        return np.vstack(comm.tompi4py().allgather(local))
 
 
 def pod(V: np.ndarray, M, num: int, against: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:

@@ -43,6 +43,7 @@ class SolverSpec:
     ds_max: float = 0.1
     tol: float = 1e-10
     max_points: int = 5000
+    kink_tol: float = 1e-6  # residual accepted for a corrector stalled on a kink at the smallest steps
 
     @property
     def omega_start(self) -> float:
@@ -177,7 +178,9 @@ def _solver(t: _Table) -> SolverSpec:
         omega_min=lo, omega_max=hi, direction=t.string("direction", "up", choices=("up", "down")),
         harmonics=H, samples=N, ds0=t.number("ds0", 0.02, gt=0), ds_min=t.number("ds_min", 1e-6, gt=0),
         ds_max=t.number("ds_max", 0.1, gt=0), tol=t.number("tol", 1e-10, gt=0),
-        max_points=t.integer("max_points", 5000, ge=2))
+        max_points=t.integer("max_points", 5000, ge=2), kink_tol=t.number("kink_tol", 1e-6, gt=0))
+    if spec.kink_tol > 1e-3:
+        t.fail("kink_tol", spec.kink_tol, "must be <= 1e-3 (a residual of 0.1 % of the force)")
     if not spec.ds_min <= spec.ds0 <= spec.ds_max:
         t.fail("ds0", spec.ds0, f"must lie in [ds_min, ds_max] = [{spec.ds_min}, {spec.ds_max}]")
     t.done()
