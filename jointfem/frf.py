@@ -147,6 +147,10 @@ def compute_frf(model, options: SweepOptions, *,
     # around it has turned back for good (folds inside that margin are followed)
     lo, hi = sorted((options.omega_start, options.omega_end))
     cont = options.continuation
+    floor = getattr(problem, "tol_floor", 0.0)
+    if cont.newton.tol < floor:
+        log.warning("Newton tolerance %.1e raised to %.1e, the round-off floor of this method", cont.newton.tol, floor)
+        cont = replace(cont, newton=replace(cont.newton, tol=floor))
     if cont.lam_bounds is None:
         cont = replace(cont, lam_bounds=(max(lo - (hi - lo), 0.0), hi + (hi - lo)))
     U0 = problem.linear_solution(options.omega_start)
@@ -159,6 +163,7 @@ def compute_frf(model, options: SweepOptions, *,
     pair_names = tuple(nm for g in physical.contacts for nm in (g.names or
                        [f"pair{i}" for i in range(g.pairs.num_pairs)]))
     info = {"time_setup_s": t_setup, "time_online_s": t_online, "num_unknowns": problem.num_unknowns,
+            "newton_tol": cont.newton.tol,
             # achieved max|R| / max|F| per point: below the Newton tol, or below kink_tol where a
             # root on a kink of the sampled law stalled Newton (docs/theory.md)
             "arrays": {"residual": np.array([p.residual for p in points]),

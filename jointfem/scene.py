@@ -347,8 +347,11 @@ def _continuum(top: _Table, kind: str, path):
         m.fail("size", size, "gives more than 2000 elements along the bars: too fine for this tool")
     if shape != "bar" and size > geo["overlap"] * (1 + 1e-9):
         m.fail("size", size, f"must be <= overlap = {geo['overlap']} m (at least one element in the joint)")
+    structured = m.raw("structured", True)
+    if not isinstance(structured, bool):
+        m.fail("structured", structured, "must be true or false")
     mesh = dict(size=size, size_normal=size_normal, degree=m.integer("degree", 2, ge=1),
-                mesh_file=m.string("file", None))
+                mesh_file=m.string("file", None), structured=structured)
     if mesh["degree"] > 2:
         m.fail("degree", mesh["degree"], "must be 1 or 2")
     m.done()

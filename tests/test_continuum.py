@@ -179,6 +179,26 @@ def test_petsc_and_scipy_backends_agree(lap3d, monkeypatch):
     assert np.abs(X_p - X_s).max() <= 1e-10 * np.abs(X_s).max()
 
 
+@pytest.mark.parametrize("dim", [2, 3])
+def test_unstructured_interfaces_match(dim):
+    """Triangles/tetrahedra, B's contact face a periodic copy of A's: the pairs still match, the
+    consistent areas (degree 1) sum to the overlap's area.  Degree 2: in 3D the contact faces are
+    P2 triangles, whose corner weights are zero, so it is refused; in 2D they are P2 edges (weights
+    1/6, 2/3, 1/6), which work."""
+    kw = dict(geometry="lap", dim=dim, size=0.005, size_normal=0.003, structured=False, kt_total=3e4, kn=2e11,
+              pressure=8e4, force_at=(0.15, 0.0, 0.0125)[:dim])
+    s = create_continuum(ContinuumSpec(degree=1, **kw))
+    area = 0.03 * 0.025
+    assert s.contacts[0].pairs.N0.sum() == pytest.approx(8e4 * area, rel=1e-12)
+    assert s.contacts[0].pairs.num_pairs >= 5
+    if dim == 3:
+        with pytest.raises(ContinuumError, match="zero area"):
+            create_continuum(ContinuumSpec(degree=2, **kw))
+    else:
+        s2 = create_continuum(ContinuumSpec(degree=2, **kw))
+        assert s2.contacts[0].pairs.N0.sum() == pytest.approx(8e4 * area, rel=1e-12)
+
+
 # ---- bad meshes and bad scenes -----------------------------------------------------------------
 
 def _spec_with_layout(monkeypatch, layout, **kw):

@@ -63,6 +63,7 @@ class ContinuumSpec:
     size: float = 0.005  # m, element size along x and z
     size_normal: float | None = None  # m, along y (default: size)
     degree: int = 2
+    structured: bool = True  # transfinite quads/hexes; False: triangles/tetrahedra, periodic contact faces
     young: float = 2.1e11  # Pa
     poisson: float = 0.3
     density: float = 7850.0  # kg/m^3
@@ -122,7 +123,7 @@ def build_mesh(spec: ContinuumSpec, comm=None) -> Mesh:
     geo.ensure_gmsh()
     try:
         if comm.rank == 0:
-            geo.build(layout, spec.size, size_normal=spec.size_normal)
+            geo.build(layout, spec.size, size_normal=spec.size_normal, structured=spec.structured)
             if spec.mesh_file:
                 _write_mesh(spec.mesh_file, layout.dim)
         mesh, cell_tags, facet_tags = compat.model_to_mesh(gmsh.model, comm, layout.dim)
@@ -337,7 +338,8 @@ def create_continuum(spec: ContinuumSpec, comm=None, mesh: Mesh | None = None) -
         area = 0.5 * (mesh.area[a] + mesh.area[b])
         if np.any(area <= 0):
             raise ContinuumError(f"{spec.source}: {int(np.sum(area <= 0))} contact nodes have zero area "
-                                 f"(degree-2 triangles do): use quadrilateral/hexahedral elements or degree 1")
+                                 f"(the corners of degree-2 triangles do): use structured quadrilateral/hexahedral "
+                                 f"elements ([mesh] structured = true) or degree = 1")
         xz = mesh.coords[a][:, [0, 2]]
         N0 = spec.pressure * area
         under = np.zeros(a.size, dtype=bool)

@@ -111,10 +111,14 @@ def divisions(length: float, size: float) -> int:
     return max(1, math.ceil(length / size - 1e-9))
 
 
-def build(layout: Layout, size: float, *, name: str = "jointfem", size_normal: float | None = None):
+def build(layout: Layout, size: float, *, name: str = "jointfem", size_normal: float | None = None,
+          structured: bool = True):
     """Mesh ``layout`` in the current gmsh session (gmsh must be initialised by the caller).
 
     size: element size along x and z, m; size_normal: along y (default ``size``).
+    structured: transfinite quadrilaterals/hexahedra; otherwise unstructured triangles/tetrahedra
+    of ``size``, with B's contact face meshed as a periodic copy (identity map) of A's, so that
+    the two faces still carry the same nodes.
     Returns the number of mesh nodes.
     """
     import gmsh
@@ -135,15 +139,18 @@ def build(layout: Layout, size: float, *, name: str = "jointfem", size_normal: f
     occ.synchronize()
 
     hn = size_normal or size
-    for _, c in gmsh.model.getEntities(1):
+    if not structured:
+        gmsh.option.setNumber("Mesh.MeshSizeMax", size)
+        gmsh.option.setNumber("Mesh.MeshSizeMin", min(size, hn))
+    for _, c in (gmsh.model.getEntities(1) if structured else []):
         x0, y0, z0, x1, y1, z1 = gmsh.model.getBoundingBox(1, c)  # padded by the OCC tolerance
         length = occ.getMass(1, c)  # exact
         n = divisions(length, hn) if (y1 - y0) > max(x1 - x0, z1 - z0) else divisions(length, size)
         gmsh.model.mesh.setTransfiniteCurve(c, n + 1)
-    for _, s in gmsh.model.getEntities(2):
+    for _, s in (gmsh.model.getEntities(2) if structured else []):
         gmsh.model.mesh.setTransfiniteSurface(s)
         gmsh.model.mesh.setRecombine(2, s)
-    if d == 3:
+    if d == 3 and structured:
         for _, v in gmsh.model.getEntities(3):
             gmsh.model.mesh.setTransfiniteVolume(v)
 
@@ -168,10 +175,13 @@ def build(layout: Layout, size: float, *, name: str = "jointfem", size_normal: f
             gmsh.model.addPhysicalGroup(d - 1, f, (CLAMP_A, CLAMP_B)[end])
     if layout.contact is not None:
         x0, x1, y = layout.contact
+        faces = [faces_in(x0, y, -big, x1, y, big, sub) for sub in (0, 1)]
         for sub in (0, 1):
-            f = faces_in(x0, y, -big, x1, y, big, sub)
-            if f:
-                gmsh.model.addPhysicalGroup(d - 1, f, (CONTACT_A, CONTACT_B)[sub])
+            if faces[sub]:
+                gmsh.model.addPhysicalGroup(d - 1, faces[sub], (CONTACT_A, CONTACT_B)[sub])
+        if not structured and len(faces[0]) == len(faces[1]) == 1:
+            identity = [1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1]
+            gmsh.model.mesh.setPeriodic(d - 1, faces[1], faces[0], identity)
     gmsh.model.mesh.generate(d)
     return len(gmsh.model.mesh.getNodes()[0])
 

@@ -37,6 +37,10 @@ class CondensedProblem:
     """The HBM problem of a Structure condensed exactly on its contact gaps and outputs."""
 
     adapt = None
+    # S = R^-1 of a receptance whose condition number reaches 1e8 (neighbouring gaps move almost
+    # alike) carries a relative round-off of about 1e-9: a Newton tolerance below this floor only
+    # adds iterations (10 per point instead of 2 on the 3D lap joint), so compute_frf raises it.
+    tol_floor = 1e-8
 
     def __init__(self, structure: Structure, harmonics: Harmonics):
         if not structure.contacts:
