@@ -199,6 +199,18 @@ def test_unstructured_interfaces_match(dim):
         assert s2.contacts[0].pairs.N0.sum() == pytest.approx(8e4 * area, rel=1e-12)
 
 
+def test_mesh_written_through_meshio(tmp_path):
+    """[mesh] file: the gmsh mesh is written once (atomically) and reads back with its cells."""
+    import meshio
+
+    path = tmp_path / "meshes" / "lap2d.msh"
+    s = create_continuum(ContinuumSpec(geometry="lap", dim=2, size=0.01, size_normal=0.006, kt_total=3e4, kn=2e11,
+                                       force_at=(0.15, 0.0), mesh_file=str(path)))
+    m = meshio.read(path)
+    assert sum(len(c.data) for c in m.cells if c.type == "quad") == s.info["cells"]
+    assert not list(path.parent.glob("*.tmp*"))
+
+
 # ---- bad meshes and bad scenes -----------------------------------------------------------------
 
 def _spec_with_layout(monkeypatch, layout, **kw):
