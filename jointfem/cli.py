@@ -120,6 +120,11 @@ def cmd_frf(args) -> int:
     from .plots import plot_frf
 
     plot_frf(frf, out / "frf.png", title=f"{scene.name} ({args.method}, H={scene.solver.harmonics})")
+    if args.plots and structure.num_pairs:
+        from .viz import plot_folder
+
+        for pic in plot_folder(out):
+            logging.getLogger("jointfem").info("wrote %s", pic.path)
     logging.getLogger("jointfem").info("wrote %s", out)
     if not args.quiet:
         for name, pk in summary["peaks"].items():
@@ -163,6 +168,16 @@ def cmd_compare(args) -> int:
     return 0
 
 
+def cmd_plot(args) -> int:
+    from .viz import plot_folder
+
+    pics = plot_folder(args.folder, point=args.point, omega=args.omega)
+    if not args.quiet:
+        for pic in pics:
+            print(f"wrote {pic.path}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="jointfem", description="Nonlinear vibration of jointed structures (HBM).")
     sub = p.add_subparsers(dest="command", required=True)
@@ -175,7 +190,15 @@ def build_parser() -> argparse.ArgumentParser:
     f.add_argument("--modes", type=int, default=20, help="vibration modes of the ROM (default 20)")
     f.add_argument("--tvd", type=int, default=0, help="trial-vector derivatives (penalty, tvd; default 0)")
     f.add_argument("--quiet", action="store_true", help="no progress bar or summary")
+    f.add_argument("--plots", action="store_true", help="also the contact-state pictures (as `jointfem plot`)")
     f.set_defaults(func=cmd_frf)
+    pp = sub.add_parser("plot", help="contact-state pictures of a result folder (PNG, off-screen)")
+    pp.add_argument("folder", help="a folder written by `jointfem frf`")
+    grp = pp.add_mutually_exclusive_group()
+    grp.add_argument("--point", default="peak", help="'peak' (default) or a branch point index")
+    grp.add_argument("--omega", type=float, help="the branch point nearest to this omega, rad/s")
+    pp.add_argument("--quiet", action="store_true")
+    pp.set_defaults(func=cmd_plot)
     c = sub.add_parser("compare", help="every ROM against full order: sizes, times, errors (CSV, Markdown, PNG)")
     c.add_argument("scene", help="scene file (TOML)")
     c.add_argument("--methods", default=DEFAULT_COMPARE,

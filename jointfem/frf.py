@@ -8,6 +8,7 @@ from typing import Callable
 
 import numpy as np
 
+from .contact.jenkins import pair_summary
 from .continuation.arclength import ContinuationOptions, ContinuationPoint, continue_branch
 from .hbm.harmonics import Harmonics
 from .hbm.residual import HBMResidual
@@ -140,8 +141,13 @@ def compute_frf(model, options: SweepOptions, *,
 
     def extra(U, omega):
         mask = getattr(problem, "mask", None)
-        return (problem.states(U, omega, evaluate(U, omega, False).contact), problem.size,
-                None if mask is None else mask.copy())
+        contact = evaluate(U, omega, False).contact
+        if hasattr(problem, "pair_summary"):
+            summary = problem.pair_summary(U, omega, contact)
+        else:
+            summary = (np.concatenate([pair_summary(c, g.pairs) for c, g in zip(contact, structure.contacts)])
+                       if contact else np.zeros((0, 3)))
+        return (problem.states(U, omega, contact), problem.size, None if mask is None else mask.copy(), summary)
 
     # a frequency response lives at positive omega: a branch that leaves twice the sweep's span
     # around it has turned back for good (folds inside that margin are followed)
@@ -167,7 +173,15 @@ def compute_frf(model, options: SweepOptions, *,
             # achieved max|R| / max|F| per point: below the Newton tol, or below kink_tol where a
             # root on a kink of the sampled law stalled Newton (docs/theory.md)
             "arrays": {"residual": np.array([p.residual for p in points]),
-                       "rom_size": np.array([p.extra[1] for p in points])}}
+                       "rom_size": np.array([p.extra[1] for p in points]),
+                       # per point and pair: dissipated energy per cycle (J), tangential relative
+                       # displacement amplitude (m), peak normal force (N); contact.jenkins.pair_summary
+                       "pair_energy_J": np.array([p.extra[3][:, 0] for p in points]),
+                       "pair_tangential_amp_m": np.array([p.extra[3][:, 1] for p in points]),
+                       "pair_peak_normal_N": np.array([p.extra[3][:, 2] for p in points])}}
+    coords = [g.coords for g in physical.contacts]
+    if coords and all(c is not None for c in coords):
+        info["pair_coords"] = np.concatenate(coords)
     if problem.adapt is not None:
         info["active_set_events"] = dict(problem.events)
         # active internal variables per point (penalty ROM), in the order of the contact components

@@ -141,6 +141,7 @@ def save_frf(frf: FrequencyResponse, out: Path, *, summary: dict) -> dict:
                    {"output_recovery": np.array([np.broadcast_to(frf.outputs[k], (frf.num_dofs,)) if np.ndim(
                        frf.outputs[k]) else np.eye(frf.num_dofs)[frf.outputs[k]] for k in names])}),
                 state_names=np.array(STATE_NAMES), layout=np.array("harmonic-major: U[j*n + dof], j=0 const, 2k-1 cos k, 2k sin k"),
+                **({"pair_coords": np.asarray(frf.info["pair_coords"])} if "pair_coords" in frf.info else {}),
                 **{k: np.asarray(v) for k, v in frf.info.get("arrays", {}).items()})
 
     _atomic_write(out / "branch.npz", write_npz)

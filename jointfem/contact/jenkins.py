@@ -123,6 +123,33 @@ class ContactResult:
     w_start: np.ndarray
 
 
+def pair_summary(result: ContactResult, pairs: JenkinsPairs) -> np.ndarray:
+    """Per-pair quantities of one steady period, shape (P, 3):
+
+    0. dissipated energy per cycle, J: the work of the tangential force over the closed loop of the
+       tangential gap, sum over samples of (f_i + f_i+1)/2 . (g_i+1 - g_i) (trapezoid, periodic);
+    1. amplitude of the tangential relative displacement, m: max over the period of
+       |g_t - mean g_t| (the slip plus the elastic stretch of the pair's spring);
+    2. peak normal force over the period, N (N0 when the normal is not a variable).
+    """
+    return _summary(result.f_t, result.g_t, pairs)
+
+
+def linear_pair_summary(g_t: np.ndarray, pairs: JenkinsPairs) -> np.ndarray:
+    """pair_summary of pairs held by their stuck springs, f = f0 + Kc g (g_t: (N, P, m) samples)."""
+    return _summary(pairs.preload[None] + pairs.stiffness[None] * g_t, g_t, pairs)
+
+
+def _summary(f_t: np.ndarray, g_t: np.ndarray, pairs: JenkinsPairs) -> np.ndarray:
+    nt = pairs.num_tangential
+    f, g = f_t[:, :, :nt], g_t[:, :, :nt]
+    f_next, g_next = np.roll(f, -1, axis=0), np.roll(g, -1, axis=0)
+    energy = np.einsum("ipa,ipa->p", 0.5 * (f + f_next), g_next - g)
+    amp = np.linalg.norm(g - g.mean(axis=0), axis=2).max(axis=0)
+    normal = f_t[:, :, nt].max(axis=0) if pairs.has_normal else pairs.N0.copy()
+    return np.column_stack([energy, amp, normal])
+
+
 @lru_cache(maxsize=16)
 def _operators(harmonics: Harmonics):
     """Running sums and product table that the compiled kernel needs, per Harmonics."""

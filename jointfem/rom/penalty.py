@@ -33,7 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from ..contact.jenkins import SEPARATED, SLIP, JenkinsPairs
+from ..contact.jenkins import SEPARATED, SLIP, JenkinsPairs, linear_pair_summary, pair_summary
 from ..hbm.harmonics import Harmonics
 from ..hbm.residual import HBMResidual
 from ..linalg import Factorized, LinAlgError, eigen
@@ -221,6 +221,15 @@ class PenaltyProblem:
         for res, idx in zip(contact, self._active_pair_index()):
             st[:, idx] = res.state_t
         return st
+
+    def pair_summary(self, U, omega, contact) -> np.ndarray:
+        """contact.jenkins.pair_summary per physical pair (P, 3): the AFT of the active pairs, the
+        stuck linear springs of the others (which dissipate nothing)."""
+        out = [linear_pair_summary(g_t, gr.group.pairs) for gr, g_t in zip(self.rom.groups, self._gap_time(U))]
+        out = np.concatenate(out) if out else np.zeros((0, 3))
+        for res, idx, gr in zip(contact, self._active_pair_index(), self.structure.contacts):
+            out[idx] = pair_summary(res, gr.pairs)
+        return out
 
     def _active_pair_index(self):
         """Global pair indices of the pairs in each contact group of the current ROM structure."""

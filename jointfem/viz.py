@@ -1,0 +1,282 @@
+"""Off-screen pictures of a result folder: contact-state maps of the interface (pyvista) and the
+state of every pair along the branch (matplotlib).  No display and no xvfb are needed: VTK from
+PyPI renders off-screen.
+
+Everything is read back from ``branch.npz`` (written by ``jointfem frf``): the contact state of
+every pair at every time sample of every point, the per-pair energy, tangential amplitude and
+peak normal force, and the pairs' reference positions.  Nothing is recomputed.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .contact.jenkins import STATE_NAMES
+from .results import OutputError, load_branch
+
+# one colour per contact state, shared by every picture (stick, slip, separated)
+STATE_COLORS = ("#2c7bb6", "#fdae61", "#d7191c")
+
+
+def state_rgb() -> np.ndarray:
+    return np.array([[int(c[i:i + 2], 16) for i in (1, 3, 5)] for c in STATE_COLORS])
+
+
+@dataclass
+class Picture:
+    """What a picture shows, for the caller and the tests: its file, size and legends."""
+
+    path: Path
+    size: tuple[int, int]
+    legends: list[str] = field(default_factory=list)
+    colorbars: list[str] = field(default_factory=list)
+    states_shown: tuple[int, ...] = ()
+    map_box: tuple[int, int, int, int] | None = None  # (x0, y0, x1, y1) image pixels of the state map, no legend
+
+
+def load(folder) -> dict:
+    folder = Path(folder)
+    path = folder / "branch.npz"
+    if not path.is_file():
+        raise OutputError(f"{folder}: no branch.npz here (is it a folder written by `jointfem frf`?)")
+    return load_branch(path)
+
+
+def pick_point(data: dict, point: str | None = None, omega: float | None = None, output: str | None = None) -> int:
+    """Index of the branch point: 'peak' (largest first-harmonic amplitude of the first output),
+    an index, or the point nearest to omega (rad/s)."""
+    n = data["omega"].size
+    if omega is not None:
+        return int(np.argmin(np.abs(data["omega"] - omega)))
+    if point in (None, "peak"):
+        amp = _output_amplitude(data, output)
+        return int(np.argmax(amp))
+    try:
+        i = int(point)
+    except ValueError:
+        raise OutputError(f"--point = {point!r}: must be 'peak' or a point index") from None
+    if not -n <= i < n:
+        raise OutputError(f"--point = {i}: the branch has {n} points (0 to {n - 1})")
+    return i % n
+
+
+def _output_amplitude(data: dict, output: str | None) -> np.ndarray:
+    names = list(data["output_names"])
+    j = names.index(output) if output in names else 0
+    U = data["U"]
+    q = int(data["num_dofs"])
+    if "output_dofs" in data:
+        row = np.zeros(q)
+        row[int(data["output_dofs"][j])] = 1.0
+    else:
+        row = data["output_recovery"][j]
+    c = U[:, q:2 * q] @ row  # cos of harmonic 1 (harmonic-major layout)
+    s = U[:, 2 * q:3 * q] @ row
+    return np.hypot(c, s)
+
+
+def fractions(data: dict, i: int) -> np.ndarray:
+    """Share of the period each pair spends stuck, slipping, separated at point i, shape (P, 3)."""
+    st = data["states"][i]  # (N, P)
+    return np.stack([(st == k).mean(axis=0) for k in range(3)], axis=1)
+
+
+def dominant(data: dict) -> np.ndarray:
+    """Dominant state of every pair at every point, shape (points, P)."""
+    st = data["states"]
+    counts = np.stack([(st == k).sum(axis=1) for k in range(3)], axis=-1)  # (points, P, 3)
+    return counts.argmax(axis=-1)
+
+
+# ---- matplotlib: pairs against frequency ---------------------------------------------------
+
+def plot_state_map(data: dict, path: Path, *, title: str = "") -> Picture:
+    """Every pair (rows) at every branch point (columns at its omega), coloured by its dominant state."""
+    from matplotlib.colors import ListedColormap
+    from matplotlib.patches import Patch
+
+    from .plots import _pyplot
+
+    plt = _pyplot()
+    dom = dominant(data)
+    P = dom.shape[1]
+    fig, ax = plt.subplots(figsize=(8, 1.6 + 0.12 * min(P, 60)))
+    omega = data["omega"]
+    order = np.arange(omega.size)
+    x = np.repeat(omega[order], P)
+    y = np.tile(np.arange(P), omega.size)
+    ax.scatter(x, y, c=dom[order].ravel(), cmap=ListedColormap(STATE_COLORS), vmin=-0.5, vmax=2.5,
+               marker="s", s=max(4.0, 300.0 / max(P, 1)), linewidths=0)
+    ax.set_xlabel("omega [rad/s]")
+    ax.set_ylabel("contact pair")
+    shown = tuple(int(k) for k in np.unique(dom))
+    labels = [STATE_NAMES[k] for k in range(3)]
+    ax.legend([Patch(color=STATE_COLORS[k]) for k in range(3)], labels, loc="upper left", bbox_to_anchor=(1.0, 1.0),
+              fontsize=8, title="dominant state")
+    ax.set_title(title or "dominant contact state along the branch", fontsize=10)
+    fig.tight_layout()
+    fig.set_dpi(100)
+    fig.canvas.draw()
+    w, h = fig.canvas.get_width_height()
+    bb = ax.get_window_extent()
+    box = (int(np.ceil(bb.x0)) + 1, int(np.ceil(h - bb.y1)) + 1, int(bb.x1) - 1, int(h - bb.y0) - 1)
+    path = Path(path)
+    tmp = path.with_name(path.stem + ".tmp.png")
+    fig.savefig(tmp, dpi=100)
+    plt.close(fig)
+    tmp.replace(path)
+    return Picture(path, (int(w), int(h)), legends=labels, states_shown=shown, map_box=box)
+
+
+# ---- pyvista: interface maps at one point ----------------------------------------------------
+
+def _plane(coords: np.ndarray):
+    """Centre, normal and in-plane axes of the pairs' positions (SVD), and their dimension."""
+    c = coords.mean(axis=0)
+    _, s, vt = np.linalg.svd(coords - c, full_matrices=True)
+    rank = int(np.sum(s > 1e-9 * max(s[0], 1e-300))) if s.size else 0
+    return c, vt[2], vt[0], vt[1], rank
+
+
+def plot_interface(data: dict, i: int, path: Path, *, title: str = "", window=(1600, 800)) -> Picture:
+    """Interface maps at branch point i: dominant state (legend), the share of the period stuck,
+    slipping and separated, dissipated energy per cycle, tangential amplitude and peak normal
+    force (colour bars).  Off-screen."""
+    if "pair_coords" not in data:
+        raise OutputError("branch.npz has no pair positions (pair_coords): written by an older jointfem?")
+    import pyvista as pv
+    import vtk
+
+    vtk.vtkLogger.SetStderrVerbosity(vtk.vtkLogger.VERBOSITY_OFF)
+    coords = np.asarray(data["pair_coords"], dtype=float)
+    P = coords.shape[0]
+    c, n, t1, t2, rank = _plane(coords)
+    pts = pv.PolyData(coords)
+    surface = None
+    if rank >= 2 and P >= 3:
+        flat = pv.PolyData(np.column_stack([(coords - c) @ t1, (coords - c) @ t2, np.zeros(P)]))
+        tri = flat.delaunay_2d()
+        surface = pv.PolyData(coords, tri.faces)
+    frac = fractions(data, i)
+    dom = frac.argmax(axis=1)
+    fields = [
+        ("share of the period stuck", frac[:, 0], "Blues"),
+        ("share of the period slipping", frac[:, 1], "Oranges"),
+        ("share of the period separated", frac[:, 2], "Reds"),
+        ("dissipated energy per cycle [J]", data["pair_energy_J"][i] if "pair_energy_J" in data else None, "viridis"),
+        ("tangential amplitude [m]", data["pair_tangential_amp_m"][i] if "pair_tangential_amp_m" in data else None,
+         "plasma"),
+        ("peak normal force [N]", data["pair_peak_normal_N"][i] if "pair_peak_normal_N" in data else None, "cividis"),
+    ]
+    span = np.ptp(coords, axis=0).max() or 1.0
+    spacing = span / max(np.sqrt(P), 1.0)
+    radius = 0.18 * spacing if rank >= 2 else 0.04 * span
+
+    pl = pv.Plotter(off_screen=True, window_size=list(window), shape=(2, 4), border=False)
+    pl.set_background("white")
+
+    def view():
+        if rank >= 2:
+            pl.view_vector(n, viewup=t2)
+        else:
+            pl.view_vector(np.cross(t1, [0.0, 0.0, 1.0]) if abs(t1[2]) < 0.9 else [0.0, 1.0, 0.0], viewup=[0, 0, 1])
+        pl.reset_camera()
+
+    spheres = pts.glyph(geom=pv.Sphere(radius=radius, theta_resolution=12, phi_resolution=12), scale=False,
+                        orient=False)
+    per_point = spheres.n_points // P
+    pl.subplot(0, 0)
+    rgb = state_rgb()[dom]
+    spheres["rgb"] = np.repeat(rgb, per_point, axis=0).astype(np.uint8)
+    if surface is not None:
+        pl.add_mesh(surface, color="#dddddd", lighting=False)
+    pl.add_mesh(spheres, scalars="rgb", rgb=True, lighting=False)
+    pl.add_legend([[STATE_NAMES[k], STATE_COLORS[k]] for k in range(3)], bcolor="white", face="rectangle",
+                  size=(0.9, 0.14), loc="lower center")
+    pl.add_text("dominant state", font_size=9, color="black")
+    view()
+    bars = []
+    for k, (label, values, cmap) in enumerate(fields):
+        r, col = divmod(k + 1, 4)
+        pl.subplot(r, col)
+        pl.add_text(label, font_size=9, color="black")
+        if values is None:
+            continue
+        values = np.asarray(values, dtype=float)
+        target = surface.copy() if surface is not None else spheres.copy()
+        if surface is not None:
+            target[label] = values
+        else:
+            target[label] = np.repeat(values, per_point)
+        if label.startswith("share"):
+            clim = [0.0, 1.0]
+        else:
+            clim = [float(values.min()), float(values.max())]
+            if clim[1] - clim[0] <= 1e-9 * max(abs(clim[0]), abs(clim[1]), 1e-300):  # constant field
+                pad = 0.01 * abs(clim[0]) or 1.0
+                clim = [clim[0] - pad, clim[0] + pad]
+        pl.add_mesh(target, scalars=label, cmap=cmap, clim=clim, lighting=False,
+                    scalar_bar_args={"title": label, "color": "black", "vertical": False,
+                                     "width": 0.8, "position_x": 0.1, "position_y": 0.05, "title_font_size": 10,
+                                     "label_font_size": 9})
+        bars.append(label)
+        view()
+    pl.subplot(1, 3)
+    omega = float(data["omega"][i])
+    pl.add_text(f"{title}\npoint {i} of {data['omega'].size}\nomega = {omega:.6g} rad/s\n"
+                f"f = {omega / 2 / np.pi:.6g} Hz\n{P} pairs\nstick / slip / separated:\n"
+                + " / ".join(f"{x:.2f}" for x in frac.mean(axis=0)), font_size=10, color="black",
+                position="upper_left")
+    path = Path(path)
+    tmp = path.with_name(path.stem + ".tmp.png")
+    pl.screenshot(str(tmp))
+    pl.close()
+    tmp.replace(path)
+    W, H = window
+    return Picture(path, tuple(window), legends=[STATE_NAMES[k] for k in range(3)], colorbars=bars,
+                   states_shown=tuple(int(k) for k in np.unique(dom)),
+                   map_box=(0, int(0.06 * H), W // 4, int(0.36 * H)))  # the top-left panel above its legend
+
+
+def plot_folder(folder, *, point: str | None = "peak", omega: float | None = None) -> list[Picture]:
+    """All pictures of a result folder into the folder: states_branch.png, and interface_<i>.png
+    when the pairs' positions are known."""
+    folder = Path(folder)
+    data = load(folder)
+    if data["states"].ndim != 3 or data["states"].shape[2] == 0:
+        raise OutputError(f"{folder}: the model has no contact pairs: nothing to draw")
+    i = pick_point(data, point, omega)
+    pics = [plot_state_map(data, folder / "states_branch.png", title=f"{folder.name}: dominant state per pair")]
+    if "pair_coords" in data:
+        pics.append(_plot_interface_isolated(folder, i, folder / f"interface_{i}.png", folder.name))
+    return pics
+
+
+def _interface_child(folder: str, i: int, path: str, title: str, queue) -> None:
+    try:
+        queue.put(plot_interface(load(folder), i, Path(path), title=title))
+    except BaseException as exc:  # noqa: BLE001 - reported by the parent
+        queue.put(OutputError(f"interface map of {folder}: {exc}"))
+
+
+def _plot_interface_isolated(folder: Path, i: int, path: Path, title: str) -> Picture:
+    """plot_interface in a fresh interpreter.  The VTK wheel aborts in std::regex (scalar-bar label
+    formats) once dolfinx/PETSc are loaded in the same process (measured: SIGABRT from
+    vtkScalarBarActor::LayoutTicks after a continuum run), so the picture is drawn where they are not."""
+    import multiprocessing as mp
+
+    ctx = mp.get_context("spawn")
+    queue = ctx.Queue()
+    proc = ctx.Process(target=_interface_child, args=(str(folder), i, str(path), title, queue))
+    proc.start()
+    try:
+        result = queue.get(timeout=600)
+    except Exception as exc:  # noqa: BLE001
+        proc.kill()
+        raise OutputError(f"interface map of {folder}: the renderer died (exit code {proc.exitcode})") from exc
+    proc.join()
+    if isinstance(result, BaseException):
+        raise result
+    return result

@@ -1,0 +1,109 @@
+"""Pictures of result folders, checked on the PNG files themselves (off-screen, no display).
+
+Two real runs: a 3D lap joint that sticks and slips (25 pairs, penalty ROM) and the jointed
+beam with a stiffer tangential joint, which sticks, slips and separates along its branch.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from jointfem import viz
+from jointfem.cli import main
+from jointfem.results import OutputError
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _png(path: Path) -> np.ndarray:
+    from PIL import Image
+
+    return np.asarray(Image.open(path).convert("RGB"))
+
+
+def _colour_pixels(img: np.ndarray, box, k: int) -> int:
+    x0, y0, x1, y1 = box
+    crop = img[y0:y1, x0:x1].reshape(-1, 3)
+    return int(np.all(crop == viz.state_rgb()[k], axis=1).sum())
+
+
+def _assert_picture(pic):
+    img = _png(pic.path)
+    assert img.shape[:2] == (pic.size[1], pic.size[0])  # the size asked for
+    assert img.reshape(-1, 3).std(axis=0).max() > 10  # not blank
+    assert len(np.unique(img.reshape(-1, 3), axis=0)) > 20
+    assert not list(pic.path.parent.glob("*.tmp*"))
+    return img
+
+
+@pytest.fixture(scope="module")
+def stick_slip(tmp_path_factory):
+    pytest.importorskip("dolfinx")
+    text = (ROOT / "demos" / "lap3d.toml").read_text()
+    text = (text.replace("size = 0.01 ", "size = 0.015 ").replace("samples = 256", "samples = 1024")
+            .replace("kt_total = 3.0e4", "kt = 2.0e11").replace("pressure = 8.0e4", "pressure = 2.0e5")
+            .replace("amplitude = 1.0 ", "amplitude = 3.0 ").replace('file = "meshes/lap3d.msh"', ""))
+    d = tmp_path_factory.mktemp("viz")
+    (d / "lap3d.toml").write_text(text)
+    out = d / "out"
+    assert main(["frf", str(d / "lap3d.toml"), "--method", "penalty", "--modes", "10", "--quiet",
+                 "--out", str(out)]) == 0
+    return out
+
+
+@pytest.fixture(scope="module")
+def separating(tmp_path_factory):
+    text = (ROOT / "demos" / "beam2d.toml").read_text().replace("kt = 1.0e4 ", "kt = 3.0e5 ")
+    d = tmp_path_factory.mktemp("viz_beam")
+    (d / "beam.toml").write_text(text)
+    out = d / "out"
+    assert main(["frf", str(d / "beam.toml"), "--harmonics", "3", "--samples", "1024", "--method", "penalty",
+                 "--modes", "10", "--quiet", "--plots", "--out", str(out)]) == 0
+    return out
+
+
+def test_interface_map_stick_slip(stick_slip):
+    """At a point where some pairs mostly stick and others mostly slip, the state map shows both
+    colours (in the map, not only in the legend); every panel has its colour bar."""
+    data = viz.load(stick_slip)
+    dom = viz.dominant(data)
+    mixed = [i for i in range(dom.shape[0]) if {0, 1} <= set(np.unique(dom[i]))]
+    assert mixed, "the run must have a point where pairs stick and slip"
+    pics = viz.plot_folder(stick_slip, point=str(mixed[0]))
+    inter = [p for p in pics if p.path.name.startswith("interface_")][0]
+    img = _assert_picture(inter)
+    assert inter.size == (1600, 800)
+    for k in (0, 1):
+        assert _colour_pixels(img, inter.map_box, k) > 50, viz.STATE_NAMES[k]
+    assert _colour_pixels(img, inter.map_box, 2) == 0  # nothing separates in this run
+    assert inter.legends == ["stick", "slip", "separated"]
+    assert len(inter.colorbars) == 6
+    branch = [p for p in pics if p.path.name == "states_branch.png"][0]
+    bimg = _assert_picture(branch)
+    assert all(_colour_pixels(bimg, branch.map_box, k) > 20 for k in (0, 1))
+
+
+def test_state_map_separating(separating):
+    """`frf --plots` draws the branch map; the beam sticks, slips and separates along it: all three
+    colours inside the axes.  The beam's 3 pairs lie on a line: the interface map draws points."""
+    branch = viz.plot_folder(separating)[0]
+    img = _assert_picture(branch)
+    data = viz.load(separating)
+    assert set(np.unique(viz.dominant(data))) == {0, 1, 2}
+    for k in range(3):
+        assert _colour_pixels(img, branch.map_box, k) > 5, viz.STATE_NAMES[k]  # the beam slips at one point only
+    assert branch.legends == ["stick", "slip", "separated"]
+    assert (separating / "states_branch.png").is_file()
+    inter = sorted(separating.glob("interface_*.png"))
+    assert inter
+    _assert_picture(viz.Picture(inter[0], (1600, 800)))
+
+
+def test_plot_cli_errors(tmp_path, separating, capsys):
+    assert main(["plot", str(tmp_path)]) == 2
+    assert "no branch.npz" in capsys.readouterr().err
+    assert main(["plot", str(separating), "--point", "100000"]) == 2
+    assert "points" in capsys.readouterr().err
+    assert main(["plot", str(separating), "--omega", "1700", "--quiet"]) == 0
