@@ -80,6 +80,27 @@ def solve_scene(scene: Scene, *, progress: bool = False, method: str = "full", r
     return structure, frf, t_build, rom
 
 
+def _save_shape(structure, rom, out: Path) -> None:
+    """shape.npz: node positions and the map from the solved coordinates to the physical DOFs,
+    for the deformed-shape picture (continuum models; not for --method exact, whose unknowns are
+    the gaps only)."""
+    geom = structure.info.get("geometry")
+    if geom is None or (rom is not None and not hasattr(rom, "T")):
+        return
+    import numpy as np
+
+    from .results import _atomic_write
+
+    extra = {} if rom is None else {"recovery": np.asarray(rom.T)}
+
+    def write(p):
+        with open(p, "wb") as fh:
+            np.savez_compressed(fh, node_coords=geom["node_coords"], dof_node=geom["dof_node"],
+                                dof_comp=geom["dof_comp"], **extra)
+
+    _atomic_write(out / "shape.npz", write)
+
+
 def _rom_options(args) -> RomOptions:
     if args.modes < 0 or args.tvd < 0:
         raise RomError(f"--modes = {args.modes} and --tvd = {args.tvd} must be >= 0")
@@ -117,6 +138,7 @@ def cmd_frf(args) -> int:
                    "total": time.perf_counter() - t0},
     }
     summary = save_frf(frf, out, summary=summary)
+    _save_shape(structure, rom, out)
     from .plots import plot_frf
 
     plot_frf(frf, out / "frf.png", title=f"{scene.name} ({args.method}, H={scene.solver.harmonics})")

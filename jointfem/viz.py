@@ -240,6 +240,62 @@ def plot_interface(data: dict, i: int, path: Path, *, title: str = "", window=(1
                    map_box=(0, int(0.06 * H), W // 4, int(0.36 * H)))  # the top-left panel above its legend
 
 
+def plot_shape(folder, i: int, path: Path, *, title: str = "", window=(1200, 600)) -> Picture:
+    """The deformed shape at branch point i: the first-harmonic displacement at the phase of its
+    largest norm, scaled to a tenth of the model size, coloured by its magnitude, over the
+    undeformed nodes, with a ruler.  Needs shape.npz (continuum runs of `jointfem frf`)."""
+    import pyvista as pv
+    import vtk
+
+    vtk.vtkLogger.SetStderrVerbosity(vtk.vtkLogger.VERBOSITY_OFF)
+    folder = Path(folder)
+    data = load(folder)
+    with np.load(folder / "shape.npz") as z:
+        shape = {k: z[k] for k in z.files}
+    q = int(data["num_dofs"])
+    U = data["U"][i]
+    zc, zs = U[q:2 * q], U[2 * q:3 * q]
+    if "recovery" in shape:
+        zc, zs = shape["recovery"] @ zc, shape["recovery"] @ zs
+    X = shape["node_coords"]
+    nodes, comps = shape["dof_node"], shape["dof_comp"]
+    phases = np.linspace(0.0, np.pi, 33)
+    best, disp = -1.0, None
+    for ph in phases:
+        u = np.zeros_like(X)
+        u[nodes, comps] = zc * np.cos(ph) + zs * np.sin(ph)
+        nrm = np.linalg.norm(u, axis=1).max()
+        if nrm > best:
+            best, disp = nrm, u
+    extent = float(np.ptp(X, axis=0).max())
+    scale = 0.1 * extent / best if best > 0 else 1.0
+    cloud = pv.PolyData(X + scale * disp)
+    cloud["|u| [m]"] = np.linalg.norm(disp, axis=1)
+    pl = pv.Plotter(off_screen=True, window_size=list(window))
+    pl.set_background("white")
+    pl.add_mesh(pv.PolyData(X), color="#bbbbbb", point_size=2, render_points_as_spheres=False)
+    pl.add_mesh(cloud, scalars="|u| [m]", cmap="viridis", point_size=4, render_points_as_spheres=False,
+                scalar_bar_args={"title": "first-harmonic |u| [m]", "color": "black", "vertical": False,
+                                 "width": 0.6, "position_x": 0.2, "position_y": 0.04})
+    lo = X.min(axis=0)
+    ruler = 10 ** np.floor(np.log10(extent / 3))
+    pl.add_ruler(lo + [0.0, -0.15 * extent, 0.0], lo + [ruler, -0.15 * extent, 0.0], title=f"{ruler:g} m",
+                 number_labels=2, font_size_factor=0.6, label_color="black", tick_color="black")
+    omega = float(data["omega"][i])
+    pl.add_text(f"{title}  point {i}, omega = {omega:.6g} rad/s ({omega / 2 / np.pi:.6g} Hz)\n"
+                f"displacement x {scale:.3g} (largest {best:.3e} m)", font_size=10, color="black")
+    pl.view_xy()
+    pl.camera.azimuth = -25
+    pl.camera.elevation = 25
+    pl.reset_camera()
+    path = Path(path)
+    tmp = path.with_name(path.stem + ".tmp.png")
+    pl.screenshot(str(tmp))
+    pl.close()
+    tmp.replace(path)
+    return Picture(path, tuple(window), colorbars=["first-harmonic |u| [m]"])
+
+
 def plot_folder(folder, *, point: str | None = "peak", omega: float | None = None) -> list[Picture]:
     """All pictures of a result folder into the folder: states_branch.png, and interface_<i>.png
     when the pairs' positions are known."""
@@ -249,33 +305,43 @@ def plot_folder(folder, *, point: str | None = "peak", omega: float | None = Non
         raise OutputError(f"{folder}: the model has no contact pairs: nothing to draw")
     i = pick_point(data, point, omega)
     pics = [plot_state_map(data, folder / "states_branch.png", title=f"{folder.name}: dominant state per pair")]
-    if "pair_coords" in data:
-        pics.append(_plot_interface_isolated(folder, i, folder / f"interface_{i}.png", folder.name))
+    if "pair_coords" in data or (folder / "shape.npz").is_file():
+        pics += _plot_vtk_isolated(folder, i, folder.name)
     return pics
 
 
-def _interface_child(folder: str, i: int, path: str, title: str, queue) -> None:
+def _vtk_child(folder: str, i: int, title: str, queue) -> None:
     try:
-        queue.put(plot_interface(load(folder), i, Path(path), title=title))
+        pics = []
+        data = load(folder)
+        if "pair_coords" in data:
+            pics.append(plot_interface(data, i, Path(folder) / f"interface_{i}.png", title=title))
+        if (Path(folder) / "shape.npz").is_file():
+            pics.append(plot_shape(folder, i, Path(folder) / f"shape_{i}.png", title=title))
+        queue.put(pics)
     except BaseException as exc:  # noqa: BLE001 - reported by the parent
-        queue.put(OutputError(f"interface map of {folder}: {exc}"))
+        queue.put(OutputError(f"pictures of {folder}: {exc}"))
 
 
-def _plot_interface_isolated(folder: Path, i: int, path: Path, title: str) -> Picture:
-    """plot_interface in a fresh interpreter.  The VTK wheel aborts in std::regex (scalar-bar label
+def _plot_vtk_isolated(folder: Path, i: int, title: str) -> list[Picture]:
+    """plot_interface and plot_shape in a fresh interpreter.  The VTK wheel aborts in std::regex (scalar-bar label
     formats) once dolfinx/PETSc are loaded in the same process (measured: SIGABRT from
     vtkScalarBarActor::LayoutTicks after a continuum run), so the picture is drawn where they are not."""
     import multiprocessing as mp
 
     ctx = mp.get_context("spawn")
     queue = ctx.Queue()
-    proc = ctx.Process(target=_interface_child, args=(str(folder), i, str(path), title, queue))
+    proc = ctx.Process(target=_vtk_child, args=(str(folder), i, title, queue))
     proc.start()
-    try:
-        result = queue.get(timeout=600)
-    except Exception as exc:  # noqa: BLE001
-        proc.kill()
-        raise OutputError(f"interface map of {folder}: the renderer died (exit code {proc.exitcode})") from exc
+    import queue as queue_mod
+
+    result = None
+    while result is None:
+        try:
+            result = queue.get(timeout=1.0)
+        except queue_mod.Empty:
+            if not proc.is_alive():
+                raise OutputError(f"pictures of {folder}: the renderer died (exit code {proc.exitcode})") from None
     proc.join()
     if isinstance(result, BaseException):
         raise result

@@ -282,7 +282,7 @@ def _mpirun():
 @pytest.mark.slow
 def test_mpi_two_ranks_equal_serial(tmp_path):
     """`mpirun -n 2 python -m jointfem frf` (distributed assembly, SLEPc and MUMPS) gives the
-    serial FRF to 1e-8, written once."""
+    serial FRF to 1e-8, written once, pictures included."""
     scene = tmp_path / "lap2d.toml"
     text = (ROOT / "demos" / "lap2d.toml").read_text()
     scene.write_text(text.replace("amplitude = 3.0", "amplitude = 1.0").replace("size = 0.01", "size = 0.0025")
@@ -294,7 +294,9 @@ def test_mpi_two_ranks_equal_serial(tmp_path):
     args = [sys.executable, "-m", "jointfem", "frf", str(scene), "--method", "penalty", "--modes", "10",
             "--quiet", "--out"]
     subprocess.run(args + [str(tmp_path / "serial")], check=True, env=env, cwd=ROOT, timeout=600)
-    subprocess.run(_mpirun() + args + [str(tmp_path / "mpi")], check=True, env=env, cwd=ROOT, timeout=600)
+    subprocess.run(_mpirun() + args[:-1] + ["--plots", "--out", str(tmp_path / "mpi")], check=True, env=env, cwd=ROOT,
+                   timeout=600)
+    assert len(list((tmp_path / "mpi").glob("interface_*.png"))) == 1  # drawn once, by rank 0
     a = np.load(tmp_path / "serial" / "branch.npz")
     b = np.load(tmp_path / "mpi" / "branch.npz")
     assert a["omega"].shape == b["omega"].shape

@@ -83,6 +83,9 @@ def test_interface_map_stick_slip(stick_slip):
     branch = [p for p in pics if p.path.name == "states_branch.png"][0]
     bimg = _assert_picture(branch)
     assert all(_colour_pixels(bimg, branch.map_box, k) > 20 for k in (0, 1))
+    shape = [p for p in pics if p.path.name.startswith("shape_")][0]
+    _assert_picture(shape)
+    assert shape.size == (1200, 600) and shape.colorbars == ["first-harmonic |u| [m]"]
 
 
 def test_state_map_separating(separating):

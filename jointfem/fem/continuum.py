@@ -396,6 +396,8 @@ def create_continuum(spec: ContinuumSpec, comm=None, mesh: Mesh | None = None) -
     timings = dict(mesh.timings, contact_s=time.perf_counter() - t0)
     info = {"kind": f"continuum{d}d", "geometry": spec.geometry, "free_dofs": int(free.size),
             "nodes": int(nn), "cells": int(mesh.cells), "degree": spec.degree, "timings": timings,
-            "supported": bool(mesh.clamped.size), "force_node": mesh.coords[fnode].tolist(), **pair_info}
+            "supported": bool(mesh.clamped.size), "force_node": mesh.coords[fnode].tolist(), **pair_info,
+            # for pictures of the deformed shape (jointfem.viz): where each DOF sits and points
+            "geometry": {"node_coords": mesh.coords, "dof_node": node_of, "dof_comp": comp_of}}
     return Structure(K=K, M=M, D=D, fc=fc, fs=np.zeros_like(fc), contacts=groups, dof_names=names,
                      outputs=outputs, info=info, substructure=mesh.sub[node_of].astype(np.int32))
