@@ -110,3 +110,17 @@ def test_plot_cli_errors(tmp_path, separating, capsys):
     assert main(["plot", str(separating), "--point", "100000"]) == 2
     assert "points" in capsys.readouterr().err
     assert main(["plot", str(separating), "--omega", "1700", "--quiet"]) == 0
+
+
+def test_frf_picture_has_rom_size_axis(separating):
+    """frf.png of a penalty-ROM run: the size asked for (7.5 x 6.5 in at 120 dpi), not blank, with
+    the ROM size's grey (0.35) on its second axis, which a full-order run's picture lacks."""
+    from jointfem.results import load_branch
+
+    img = _png(separating / "frf.png")
+    assert img.shape[:2] == (780, 900)
+    assert img.reshape(-1, 3).std(axis=0).max() > 10
+    grey = int(np.all(img == 89, axis=2).sum())  # matplotlib "0.35" = (89, 89, 89)
+    sizes = load_branch(separating / "branch.npz")["rom_size"]
+    assert sizes.max() > sizes.min()  # the active set changed along the branch, so the axis is drawn
+    assert grey > 100  # measured: 245 with the axis, 12-16 in pictures without it
