@@ -164,7 +164,8 @@ def test_exact_condensation_jacobian_fd():
 
 
 def test_petsc_and_scipy_backends_agree(lap3d, monkeypatch):
-    """SLEPc shift-invert and MUMPS give the modes and static solves of ARPACK and SuperLU."""
+    """SLEPc shift-invert and MUMPS give the modes and static solves of ARPACK and SuperLU, and
+    MUMPS on the real block form the complex solves of SuperLU."""
     from jointfem import linalg
 
     _, s = lap3d
@@ -177,6 +178,17 @@ def test_petsc_and_scipy_backends_agree(lap3d, monkeypatch):
     assert np.allclose(w_p, w_s, rtol=1e-10)
     assert np.abs(np.abs(Phi_p.T @ (s.M @ Phi_s)) - np.eye(6)).max() < 1e-8
     assert np.abs(X_p - X_s).max() <= 1e-10 * np.abs(X_s).max()
+    # a complex dynamic stiffness (the exact condensation's): MUMPS on the real 2n form against SuperLU
+    w = 1700.0
+    Z = (s.K - w**2 * s.M + 1j * w * s.D).tocsr()
+    B = s.contacts[0].gap.T.toarray()[:, :20]
+    Y_s = linalg.Factorized(Z).solve(B)
+    monkeypatch.setenv("JOINTFEM_LINALG", "petsc")
+    monkeypatch.setenv("JOINTFEM_MUMPS_COMPLEX", "1")
+    F = linalg.Factorized(Z)
+    assert type(F).__name__ == "_MumpsComplex"
+    Y_p = F.solve(B)
+    assert np.abs(Y_p - Y_s).max() <= 1e-8 * np.abs(Y_s).max()
 
 
 @pytest.mark.parametrize("dim", [2, 3])
