@@ -95,7 +95,7 @@ class StructureProblem:
 
 
 def make_problem(model, harmonics: Harmonics):
-    """The HBM problem of a Structure, a ReducedModel or a PenaltyROM."""
+    """The HBM problem of a Structure, a ReducedModel, a PenaltyROM or an ExactModel."""
     from .hbm.condensed import CondensedProblem
     from .rom.common import ExactModel, ReducedModel
     from .rom.penalty import PenaltyProblem, PenaltyROM
