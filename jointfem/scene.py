@@ -102,6 +102,8 @@ class _Table:
             self.fail(k, v, "must be a number")
         if not math.isfinite(v):
             self.fail(k, v, "must be finite")
+        if v != 0 and not 1e-30 <= abs(v) <= 1e30:  # SI values of this field live far inside; beyond, K or M overflow
+            self.fail(k, v, "must be 0 or of magnitude between 1e-30 and 1e30 (SI units)")
         if gt is not None and not v > gt:
             self.fail(k, v, f"must be > {gt}")
         if ge is not None and not v >= ge:
@@ -165,6 +167,8 @@ def _solver(t: _Table) -> SolverSpec:
     lo, hi = float(rng[0]), float(rng[1])
     if lo <= 0:
         t.fail("omega_range", rng, "omega_min must be > 0 rad/s")
+    if not (1e-30 <= lo and hi <= 1e30):
+        t.fail("omega_range", rng, "must lie between 1e-30 and 1e30 rad/s")
     if hi == lo:
         t.fail("omega_range", rng, "empty frequency range (omega_min == omega_max)")
     if hi < lo:
