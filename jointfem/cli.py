@@ -10,6 +10,7 @@ from pathlib import Path
 
 from .continuation.arclength import ContinuationError, ContinuationOptions, ConvergenceError, NewtonOptions
 from .contact.jenkins import ContactError
+from .fem.continuum import ContinuumError
 from .linalg import LinAlgError
 from .results import OutputError
 from .rom.common import METHODS, RomError, RomOptions
@@ -242,7 +243,7 @@ def main(argv=None) -> int:
     try:
         return args.func(args)
     except (SceneError, ConvergenceError, ContinuationError, ContactError, OutputError, RomError,
-            LinAlgError) as exc:
+            LinAlgError, ContinuumError) as exc:
         print(f"jointfem: error: {exc}", file=sys.stderr)
         return 2
 

@@ -358,6 +358,9 @@ def _continuum(top: _Table, kind: str, path):
                 mesh_file=m.string("file", None), structured=structured)
     if mesh["degree"] > 2:
         m.fail("degree", mesh["degree"], "must be 1 or 2")
+    if not structured and dim == 3 and mesh["degree"] == 2:
+        m.fail("degree", 2, "unstructured 3D meshes need degree = 1: the corners of degree-2 triangles on the "
+                            "contact faces get zero area (or use structured = true)")
     m.done()
     mat = top.table("material", required=False)
     material = dict(young=mat.number("young", 192.85e9 if brb else 2.1e11, gt=0),

@@ -251,6 +251,18 @@ def test_empty_contact_surface_is_refused(monkeypatch):
         create_continuum(_spec_with_layout(monkeypatch, bad))
 
 
+def test_unmatched_interface_from_the_cli(tmp_path, monkeypatch, capsys):
+    """The command line reports a mesh error in one line with exit code 2, and writes nothing."""
+    from jointfem.cli import main
+
+    lay = geo.lap_layout(2, L, H, B, 0.03)
+    boxes = [dataclasses.replace(b, y=b.y + 0.001) if b.sub == 1 else b for b in lay.boxes]
+    monkeypatch.setattr(ContinuumSpec, "layout", lambda self: dataclasses.replace(lay, boxes=tuple(boxes)))
+    assert main(["frf", str(ROOT / "demos" / "lap2d.toml"), "--quiet", "--out", str(tmp_path / "out")]) == 2
+    assert "contact surface is empty" in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()
+
+
 def test_free_free_substructure_refused_before_work(tmp_path):
     """A lap joint with B unsupported is refused by the scene check (no meshing), naming the key;
     building its penalty ROM anyway fails with a clear LinAlgError, not a NaN."""
@@ -273,6 +285,7 @@ def test_free_free_substructure_refused_before_work(tmp_path):
     ("force", "at", [0.9, 0.0], "outside the model's bounding box"),
     ("contact", "kt", 1e9, "give exactly one of kt"),
     ("geometry", "shape", "ring", "must be one of"),
+    ("mesh", "structured", "no", "must be true or false"),
 ])
 def test_bad_continuum_scene(tmp_path, section, key, value, match):
     data = load_scene(ROOT / "demos" / "lap2d.toml").data
