@@ -80,16 +80,21 @@ def _gather_vec(v) -> np.ndarray:
     return out
 
 
-def _mumps_ksp(A, *, symmetric: bool):
-    from petsc4py import PETSc
-
-    ksp = PETSc.KSP().create(_comm())
-    ksp.setOperators(A)
+def _use_mumps(ksp, *, symmetric: bool):
+    """A direct solve by MUMPS (Cholesky or LU) for this KSP."""
     ksp.setType("preonly")
     pc = ksp.getPC()
     pc.setType("cholesky" if symmetric else "lu")
     pc.setFactorSolverType("mumps")
     return ksp
+
+
+def _mumps_ksp(A, *, symmetric: bool):
+    from petsc4py import PETSc
+
+    ksp = PETSc.KSP().create(_comm())
+    ksp.setOperators(A)
+    return _use_mumps(ksp, symmetric=symmetric)
 
 
 def _eigen_petsc(K, M, num: int, what: str, sigma: float):
@@ -106,24 +111,22 @@ def _eigen_petsc(K, M, num: int, what: str, sigma: float):
     st = eps.getST()
     st.setType("sinvert")
     st.setShift(sigma)
-    ksp = st.getKSP()
-    ksp.setType("preonly")
-    pc = ksp.getPC()
-    pc.setType("cholesky")
-    pc.setFactorSolverType("mumps")
+    _use_mumps(st.getKSP(), symmetric=True)
     eps.solve()
     nconv = eps.getConverged()
     if nconv < num:
         raise LinAlgError(f"{what}: SLEPc converged {nconv} of {num} eigenpairs")
-    vr = A.createVecRight()
-    w2, vecs = [], []
-    for i in range(nconv):
-        w2.append(eps.getEigenpair(i, vr).real)
-        vecs.append(_gather_vec(vr))
+    # only the num lowest of the converged pairs are gathered to every rank
+    w2 = np.array([eps.getEigenvalue(i).real for i in range(nconv)])
     order = np.argsort(w2)[:num]
+    vr = A.createVecRight()
+    vecs = []
+    for i in order:
+        eps.getEigenvector(int(i), vr)
+        vecs.append(_gather_vec(vr))
     for obj in (eps, A, B, vr):
         obj.destroy()
-    return np.asarray(w2)[order], np.column_stack([vecs[i] for i in order])
+    return w2[order], np.column_stack(vecs)
 
 
 class LinAlgError(RuntimeError):

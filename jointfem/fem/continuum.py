@@ -156,12 +156,9 @@ def build_mesh(spec: ContinuumSpec, comm=None) -> Mesh:
 
     # canonical node order from the vector space's blocks
     gid, X = compat.owned_blocks(V)
-    sub_local = np.zeros(V.dofmap.index_map.size_local + V.dofmap.index_map.num_ghosts, dtype=np.int8)
-    sub_local[compat.cell_blocks(V, cell_tags.find(geo.CELL_B))] = 1
-    n_own = gid.size
     all_gid = _allgather(comm, gid)
     all_X = _allgather(comm, X)
-    all_sub = _allgather(comm, sub_local[:n_own])
+    all_sub = _allgather(comm, _substructure_of_blocks(V, cell_tags)[:gid.size])
     num_nodes = all_gid.size
     q = 1e-9 * layout.extent
     key = np.round(all_X / q).astype(np.int64)
@@ -179,14 +176,12 @@ def build_mesh(spec: ContinuumSpec, comm=None) -> Mesh:
 
     # scalar space: node map by position, then facet nodes, areas and normals
     wgid, WX = compat.owned_blocks(W)
-    w_sub = np.zeros(W.dofmap.index_map.size_local + W.dofmap.index_map.num_ghosts, dtype=np.int8)
-    w_sub[compat.cell_blocks(W, cell_tags.find(geo.CELL_B))] = 1
-    w_canon = _match_rows(np.column_stack([sub, np.round(coords / q).astype(np.int64)]),
-                          np.column_stack([w_sub[:wgid.size], np.round(WX / q).astype(np.int64)]))
+    nW = wgid.size
+    w_canon = _match_rows(kk, np.column_stack([_substructure_of_blocks(W, cell_tags)[:nW],
+                                               np.round(WX / q).astype(np.int64)]))
     if np.any(w_canon < 0):
         raise ContinuumError(f"{spec.source}: the scalar and vector spaces disagree on the nodes")
-    imapW = W.dofmap.index_map
-    nW = imapW.size_local
+    all_w_canon = _allgather(comm, w_canon)
 
     def facet_nodes(tag):
         loc = compat.facet_blocks(W, facet_tags, tag)
@@ -195,7 +190,7 @@ def build_mesh(spec: ContinuumSpec, comm=None) -> Mesh:
 
     def gather_nodal(values):
         out = np.zeros(num_nodes)
-        out[_allgather(comm, w_canon)] = _allgather(comm, values[:nW])
+        out[all_w_canon] = _allgather(comm, values[:nW])
         return out
 
     clamped = np.unique(np.concatenate([facet_nodes(t) for t in (geo.CLAMP_A, geo.CLAMP_B)])) \
@@ -218,6 +213,14 @@ def build_mesh(spec: ContinuumSpec, comm=None) -> Mesh:
     return Mesh(d, coords, sub, K, M, clamped, contact, area, normal, layout.extent,
                 {"mesh_s": t1 - t0, "assembly_s": t2 - t1, "gather_s": t3 - t2},
                 cells=mesh.topology.index_map(d).size_global)
+
+
+def _substructure_of_blocks(space, cell_tags) -> np.ndarray:
+    """0 (A) or 1 (B) for every local block (owned and ghost) of ``space``."""
+    imap = space.dofmap.index_map
+    sub = np.zeros(imap.size_local + imap.num_ghosts, dtype=np.int8)
+    sub[compat.cell_blocks(space, cell_tags.find(geo.CELL_B))] = 1
+    return sub
 
 
 def _allgather(comm, a: np.ndarray) -> np.ndarray:
@@ -269,12 +272,11 @@ def _write_mesh(path: str, dim: int):
     tags, xyz, _ = gmsh.model.mesh.getNodes()
     index = {int(t): i for i, t in enumerate(tags)}
     cells = []
-    kinds = {3: "quad", 5: "hexahedron", 2: "triangle", 4: "tetra"}
+    kinds = {2: ("triangle", 3), 3: ("quad", 4), 4: ("tetra", 4), 5: ("hexahedron", 8)}  # gmsh element types
     for etype, _, nodes in zip(*gmsh.model.mesh.getElements(dim)):
-        name = kinds.get(int(etype))
-        if name is None:
+        if int(etype) not in kinds:
             continue
-        nper = {"quad": 4, "hexahedron": 8, "triangle": 3, "tetra": 4}[name]
+        name, nper = kinds[int(etype)]
         conn = np.array([index[int(t)] for t in nodes]).reshape(-1, nper)
         cells.append((name, conn))
     points = xyz.reshape(-1, 3)[:, :dim] if dim == 2 else xyz.reshape(-1, 3)
@@ -358,9 +360,9 @@ def create_continuum(spec: ContinuumSpec, comm=None, mesh: Mesh | None = None) -
         R = frames(mesh.normal[a], d)  # (P, m, d)
         P, m = a.size, d
         rows = np.repeat(np.arange(P * m), 2 * d)
-        cols = np.concatenate([np.concatenate([d * a[p] + np.arange(d), d * b[p] + np.arange(d)])
-                               for p in range(P) for _ in range(m)])
-        vals = np.concatenate([np.concatenate([R[p, i], -R[p, i]]) for p in range(P) for i in range(m)])
+        both = np.concatenate([d * a[:, None] + np.arange(d), d * b[:, None] + np.arange(d)], axis=1)  # (P, 2d)
+        cols = np.broadcast_to(both[:, None, :], (P, m, 2 * d)).ravel()
+        vals = np.concatenate([R, -R], axis=2).ravel()  # row (p, i): R[p, i] on A's DOFs, -R[p, i] on B's
         gap_all = sp.csr_matrix((vals, (rows, cols)), shape=(P * m, n_all))
         pairs = JenkinsPairs(kt=kt, kn=kn, mu=np.full(P, spec.mu), N0=N0, num_tangential=d - 1, has_normal=True)
         pair_info = {"num_pairs": int(P), "contact_area_m2": float(total), "preload_N": float(N0.sum())}
@@ -371,7 +373,7 @@ def create_continuum(spec: ContinuumSpec, comm=None, mesh: Mesh | None = None) -
     node_of = free // d
     comp_of = free % d
     names = tuple(f"{'AB'[mesh.sub[i]]}.{i}.{COMPONENTS[c]}" for i, c in zip(node_of, comp_of))
-    index = {nm: k for k, nm in enumerate(names)}
+    loaded = np.flatnonzero(~np.isin(np.arange(nn), mesh.clamped))  # nodes a force or an output may sit on
     if pair_info:
         coords = mesh.coords[a]
         groups = (ContactGroup(pairs, gap_all[:, free].tocsr(), names=tuple(f"pair{p}" for p in range(P)),
@@ -380,11 +382,10 @@ def create_continuum(spec: ContinuumSpec, comm=None, mesh: Mesh | None = None) -
     def nearest(point, comp, what):
         p = np.zeros(3)
         p[:len(point)] = point
-        cand = np.flatnonzero(~np.isin(np.arange(nn), mesh.clamped))
-        i = cand[np.argmin(np.linalg.norm(mesh.coords[cand] - p, axis=1))]
+        i = loaded[np.argmin(np.linalg.norm(mesh.coords[loaded] - p, axis=1))]
         if comp not in COMPONENTS[:d]:
             raise ContinuumError(f"{spec.source}: {what}: component {comp!r} is not one of {COMPONENTS[:d]}")
-        return index[f"{'AB'[mesh.sub[i]]}.{i}.{comp}"], i
+        return int(np.searchsorted(free, d * i + COMPONENTS.index(comp))), i
 
     fc = np.zeros(free.size)
     fi, fnode = nearest(spec.force_at, spec.force_dir, "[force]")
