@@ -30,10 +30,10 @@ from ..contact.jenkins import compute_aft
 from ..linalg import Factorized, LinAlgError
 from ..models.structure import Structure
 from .harmonics import Harmonics
-from .residual import Evaluation
+from .residual import Evaluation, KeepsLastEvaluation, contact_pattern
 
 
-class CondensedProblem:
+class CondensedProblem(KeepsLastEvaluation):
     """The HBM problem of a Structure condensed exactly on its contact gaps and outputs."""
 
     adapt = None
@@ -64,7 +64,6 @@ class CondensedProblem:
         self._CT = self.C.T.toarray()
         self._F1 = structure.fc - 1j * structure.fs
         self._ops = None  # (omega, per-harmonic data)
-        self._last = None
         S0, _, _, _ = self._harmonic(0, 0.0)
         self._S0 = S0.real
         # the retained coordinates as a light Structure, for the results and the plots
@@ -83,16 +82,14 @@ class CondensedProblem:
         # contact Jacobian pattern per group (as in HBMResidual), in the retained coordinates
         self._groups = []
         offset = 0
+        self._Kc = np.zeros((self.r, self.r))  # the stuck contact springs on the retained coordinates
         for g in structure.contacts:
-            P, m = g.pairs.num_pairs, g.pairs.num_comp
-            p, h, a, h2, b = np.indices((P, nh, m, nh, m)).reshape(5, -1)
-            rows_ = h * self.r + offset + p * m + a
-            cols_ = h2 * self.r + offset + p * m + b
-            idx = (np.arange(nh)[:, None] * self.r + offset + np.arange(P * m)[None, :]).ravel()
-            f0 = np.zeros((nh, P, m))
-            f0[0] = g.pairs.preload
+            Pm = g.gap.shape[0]
+            rows_, cols_, f0 = contact_pattern(g.pairs, nh, self.r, offset)
+            idx = (np.arange(nh)[:, None] * self.r + offset + np.arange(Pm)[None, :]).ravel()
             self._groups.append((g, idx, rows_, cols_, f0))
-            offset += P * m
+            self._Kc[offset:offset + Pm, offset:offset + Pm] = np.diag(g.pairs.stiffness.ravel())
+            offset += Pm
 
     def force_scale(self) -> float:
         return float(max(np.abs(np.r_[self.full.fc, self.full.fs]).max(), 1e-300))
@@ -140,10 +137,7 @@ class CondensedProblem:
         return np.block([[S.real, S.imag], [-S.imag, S.real]])
 
     # ---- the problem interface of compute_frf ----------------------------------------
-    def evaluate(self, U, omega, *, jacobian=True):
-        key = (float(omega), U.tobytes())
-        if self._last is not None and self._last[0] == key and (self._last[1].J is not None or not jacobian):
-            return self._last[1]
+    def _evaluate(self, U, omega, jacobian):
         h, r = self.harmonics, self.r
         nh = h.num_hc
         data = self._operators(float(omega))
@@ -175,21 +169,13 @@ class CondensedProblem:
             contact.append(res)
             R[idx] += (res.F - f0).ravel()
             if jacobian:
-                np.add.at(J, (rows_, cols_), res.J.ravel())
-        ev = Evaluation(R, J, dR.ravel() if jacobian else None, contact)
-        self._last = (key, ev)
-        return ev
+                J[rows_, cols_] += res.J.ravel()  # the pattern's (row, col) pairs are distinct
+        return Evaluation(R, J, dR.ravel() if jacobian else None, contact)
 
     def _stuck(self, omega):
         """Stuck linear response on the retained coordinates at harmonic 1 (complex)."""
         S, _, ylin, _ = self._harmonic(1, omega)
-        Kc = np.zeros((self.r, self.r))
-        offset = 0
-        for g in self.full.contacts:
-            m = g.gap.shape[0]
-            Kc[offset:offset + m, offset:offset + m] = np.diag(g.pairs.stiffness.ravel())
-            offset += m
-        return np.linalg.solve(S + Kc, S @ ylin)
+        return np.linalg.solve(S + self._Kc, S @ ylin)
 
     def linear_solution(self, omega):
         y = self._stuck(omega)

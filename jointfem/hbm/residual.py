@@ -27,7 +27,35 @@ class Evaluation:
     contact: list[ContactResult]
 
 
-class HBMResidual:
+def contact_pattern(pairs, nh: int, stride: int, offset: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Where a contact group's AFT Jacobian blocks [p, h, a, h', b] land in a harmonic-major system
+    whose harmonic blocks are ``stride`` long and whose group starts at ``offset`` in each block,
+    and the group's static force f0 in the coefficient layout: (rows, cols, f0 of shape (nh, P, m))."""
+    P, m = pairs.num_pairs, pairs.num_comp
+    p, h, a, h2, b = np.indices((P, nh, m, nh, m)).reshape(5, -1)
+    f0 = np.zeros((nh, P, m))
+    f0[0] = pairs.preload
+    return h * stride + offset + p * m + a, h2 * stride + offset + p * m + b, f0
+
+
+class KeepsLastEvaluation:
+    """``evaluate`` returns the last evaluation again for the same (U, omega): the continuation
+    evaluates an accepted point again for its tangent, its contact states and the penalty ROM's
+    active set, and the AFT need not run twice.  Subclasses implement ``_evaluate``."""
+
+    _last = None  # (key, Evaluation)
+
+    def evaluate(self, U: np.ndarray, omega: float, *, jacobian: bool = True) -> Evaluation:
+        key = (float(omega), U.tobytes())
+        last = self._last
+        if last is not None and last[0] == key and (last[1].J is not None or not jacobian):
+            return last[1]
+        ev = self._evaluate(U, omega, jacobian)
+        self._last = (key, ev)
+        return ev
+
+
+class HBMResidual(KeepsLastEvaluation):
     """Precomputed harmonic operators for one Structure and one Harmonics."""
 
     DENSE_MAX = 3000  # unknowns; a ROM's matrices are dense, and sparse bookkeeping would dominate
@@ -48,22 +76,16 @@ class HBMResidual:
         self._A2 = sp.kron(nab @ nab, structure.M, format="csr")
         if dense:
             self._A0, self._A1, self._A2 = (a.toarray() for a in (self._A0, self._A1, self._A2))
-        self._last = None  # (key, Evaluation) of the last evaluate
         F = np.zeros(self.num_unknowns)
         F[harmonics.cos(1, n)] = structure.fc
         F[harmonics.sin(1, n)] = structure.fs
         self.F_ext = F
         self._groups = []
         for g in structure.contacts:
-            P, m = g.pairs.num_pairs, g.pairs.num_comp
             B = sp.kron(eye, g.gap, format="csr")
             BT = sp.kron(eye, g.load_operator, format="csr").T.tocsr()
-            f0 = np.zeros((nh, P, m))
-            f0[0] = g.pairs.preload
-            # Sparsity pattern of the per-pair Jacobian blocks [p, h, a, h', b].
-            p, h, a, h2, b = np.indices((P, nh, m, nh, m)).reshape(5, -1)
-            rows = h * P * m + p * m + a
-            cols = h2 * P * m + p * m + b
+            # sparsity pattern of the per-pair Jacobian blocks, in the group's own gap coefficients
+            rows, cols, f0 = contact_pattern(g.pairs, nh, g.gap.shape[0])
             if dense:
                 B, BT = B.toarray(), BT.toarray()
             self._groups.append((g, B, BT, f0, rows, cols))
@@ -76,18 +98,6 @@ class HBMResidual:
         """Gap coefficients per contact group, shape (num_hc, P, m)."""
         nh = self.harmonics.num_hc
         return [(B @ U).reshape(nh, g.pairs.num_pairs, g.pairs.num_comp) for g, B, *_ in self._groups]
-
-    def evaluate(self, U: np.ndarray, omega: float, *, jacobian: bool = True) -> Evaluation:
-        """R (and J, dR/domega) at (U, omega).  The continuation evaluates an accepted point again
-        for its tangent, its contact states and the penalty ROM's active set: the last evaluation
-        is kept and returned for the same (U, omega) instead of running the AFT again."""
-        key = (float(omega), U.tobytes())
-        last = self._last
-        if last is not None and last[0] == key and (last[1].J is not None or not jacobian):
-            return last[1]
-        ev = self._evaluate(U, omega, jacobian)
-        self._last = (key, ev)
-        return ev
 
     def _evaluate(self, U: np.ndarray, omega: float, jacobian: bool) -> Evaluation:
         A = self.linear_operator(omega)
