@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from .contact.jenkins import STATE_NAMES
+from .hbm.harmonics import Harmonics
 from .results import OutputError, load_branch
 
 # one colour per contact state, shared by every picture (stick, slip, separated)
@@ -72,9 +73,14 @@ def _output_amplitude(data: dict, output: str | None) -> np.ndarray:
         row[int(data["output_dofs"][j])] = 1.0
     else:
         row = data["output_recovery"][j]
-    c = U[:, q:2 * q] @ row  # cos of harmonic 1 (harmonic-major layout)
-    s = U[:, 2 * q:3 * q] @ row
+    c, s = (U[:, sl] @ row for sl in _first_harmonic(data, q))
     return np.hypot(c, s)
+
+
+def _first_harmonic(data: dict, q: int) -> tuple[slice, slice]:
+    """Slices of the cosine and sine of harmonic 1 of q signals in a stored coefficient vector."""
+    h = Harmonics(int(data["H"]), int(data["N"]))
+    return h.cos(1, q), h.sin(1, q)
 
 
 def fractions(data: dict, i: int) -> np.ndarray:
@@ -254,7 +260,7 @@ def plot_shape(folder, i: int, path: Path, *, title: str = "", window=(1200, 600
         shape = {k: z[k] for k in z.files}
     q = int(data["num_dofs"])
     U = data["U"][i]
-    zc, zs = U[q:2 * q], U[2 * q:3 * q]
+    zc, zs = (U[sl] for sl in _first_harmonic(data, q))
     if "recovery" in shape:
         zc, zs = shape["recovery"] @ zc, shape["recovery"] @ zs
     X = shape["node_coords"]
