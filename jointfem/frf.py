@@ -159,6 +159,10 @@ def compute_frf(model, options: SweepOptions, *,
         cont = replace(cont, newton=replace(cont.newton, tol=floor))
     if cont.lam_bounds is None:
         cont = replace(cont, lam_bounds=(max(lo - (hi - lo), 0.0), hi + (hi - lo)))
+    if cont.max_rel_change is None:
+        # a forced response never passes through zero: a step that flips its sign went through an
+        # unbounded (undamped) resonance or onto another branch, and is refused however short
+        cont = replace(cont, max_rel_change=1.0)
     U0 = problem.linear_solution(options.omega_start)
     t1 = time.perf_counter()
     points = continue_branch(fun, U0, options.omega_start, options.omega_end, x_scale=x_scale,

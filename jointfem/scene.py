@@ -460,12 +460,41 @@ def check_solvable(scene: Scene) -> None:
     opens, nothing holds it, and the static (harmonic-0) problem is singular.
     """
     spec = scene.model
+    if scene.kind == "lumped":
+        _check_lumped_supports(scene)
     if scene.kind.startswith("continuum") and spec.geometry != "bar" and not all(spec.clamped):
         free = [s for s, c in zip("AB", spec.clamped) if not c]
         raise SceneError(scene.path, "geometry.clamped", [s for s, c in zip("AB", spec.clamped) if c],
                          f"substructure {' and '.join(free)} has no supports (rigid-body modes): a nonlinear "
                          f"sweep needs both clamped; free-free models are for modal analysis "
                          f"(jointfem.fem.continuum.create_continuum and jointfem.linalg.eigen with sigma < 0)")
+
+
+def _check_lumped_supports(scene: Scene) -> None:
+    """Every DOF of a lumped model needs a path of linear springs to ground.  A DOF held only by
+    a Jenkins element has an undetermined mean position once it slips (any offset of it and of
+    its slider gives the same forces), and a DOF held by nothing has a singular stiffness."""
+    spec = scene.model
+    parent = {"ground": "ground"}
+
+    def root(a):
+        while parent.setdefault(a, a) != a:
+            a = parent[a]
+        return a
+
+    for link in spec.springs:
+        ra, rb = root(link.a), root(link.b)
+        if link.value > 0 and ra != rb:
+            if ra == "ground":
+                parent[rb] = ra
+            else:
+                parent[ra] = rb
+    free = [f"{m.name}.{d}" for m in spec.masses for d in m.dofs if root(f"{m.name}.{d}") != "ground"]
+    if free:
+        raise SceneError(scene.path, "spring", free[0],
+                         f"DOF{'s' if len(free) > 1 else ''} {', '.join(free)} ha{'ve' if len(free) > 1 else 's'} "
+                         f"no path of linear springs to ground (rigid-body motion): once a Jenkins element "
+                         f"slips or opens, nothing fixes the mean position; add a spring to ground")
 
 
 def create_structure(scene: Scene):

@@ -124,3 +124,28 @@ def test_fuzzed_scenes_fail_clearly(scene_file):
             s = create_structure(scene)
             assert np.all(np.isfinite(s.K.data)) and np.all(np.isfinite(s.M.data))
     assert errors > 150  # most garbage must be caught
+
+
+@pytest.mark.parametrize("factor", [1e-6, 1e6])
+def test_beam_contact_stiffness_extremes_stay_linear_and_well_conditioned(factor):
+    """The jointed beam with kt and kn both x 1e-6 or x 1e6 (10 to 1e10 N/m tangential, 5 to
+    5e12 N/m normal) at 1e-6 of the nominal forcing stays stuck: every point of the full-order
+    branch equals the stuck linear FRF to 1e-6 (measured 3e-9 and 7e-9, so the per-DOF scaling
+    and the round-off floor of the Newton test cope with a 1e12 spread of stiffness).  The
+    penalty ROM (default 10 modes) differs from it only by modal truncation: measured 2.0e-3
+    (x 1e-6) and 4.8e-4 (x 1e6), asserted below 5e-3."""
+    from jointfem.rom.common import build_rom
+
+    data = copy.deepcopy(load_scene(ROOT / "demos" / "beam2d.toml").data)
+    data["joint"]["kt"] *= factor
+    data["joint"]["kn"] *= factor
+    data["force"]["amplitude"] *= 1e-6
+    scene = parse_scene(data, "stiffness.toml")
+    s = create_structure(scene)
+    for method, tol in (("full", 1e-6), ("penalty", 5e-3)):
+        frf = compute_frf(s if method == "full" else build_rom(s, "penalty"), sweep_options(scene))
+        assert np.all(np.isfinite(frf.U)) and (frf.states == 0).all()
+        assert frf.omega.min() <= 1570.0 + 1e-6 and frf.omega.max() >= 1760.0 - 1e-6
+        a = frf.amplitude(frf.outputs["b1.mid.uy"])
+        ref = np.abs(s.linear_response(frf.omega)[:, s.outputs["b1.mid.uy"]])
+        assert np.abs(a / ref - 1).max() < tol, method

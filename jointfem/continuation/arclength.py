@@ -16,6 +16,7 @@ from dataclasses import dataclass, field, replace
 from typing import Callable
 
 import numpy as np
+import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
@@ -78,6 +79,9 @@ class ContinuationOptions:
     relax_ds: float = 1e-5  # below this step a corrector stalled on a kink is accepted up to relaxed_kink_tol
     max_jump: float = 3.0  # a corrector that lands farther than this many steps from the last point fails
     max_reversal_deg: float = 30.0  # a step whose tangent turns by more than 180 - this is always refused
+    # a step that changes x by more than this times max(|x|, |x_new|) is refused, however short (None: no
+    # such rule; a forced response never passes through zero, so a step that flips its sign has jumped)
+    max_rel_change: float | None = None
     lam_bounds: tuple[float, float] | None = None  # the branch must stay inside (else ContinuationError)
     newton: NewtonOptions = field(default_factory=NewtonOptions)
 
@@ -207,9 +211,39 @@ def _corrector(g, y_p, mu_p, t, opts: NewtonOptions, lam_scale: float = 1.0):
     return z[:-1], z[-1], it, res
 
 
+def _parity(perm) -> int:
+    """+1 or -1: the sign of a permutation (given as an index array), by its cycles."""
+    perm = np.asarray(perm)
+    seen = np.zeros(perm.size, bool)
+    sign = 1
+    for i in range(perm.size):
+        if not seen[i]:
+            j, length = i, 0
+            while not seen[j]:
+                seen[j] = True
+                j = perm[j]
+                length += 1
+            sign *= -1 if length % 2 == 0 else 1
+    return sign
+
+
+def _solve_with_sign(A, b):
+    """x = A^-1 b and the sign of det A, from the same LU factors."""
+    if sp.issparse(A):
+        lu = spla.splu(A.tocsc())
+        d = lu.U.diagonal()
+        return lu.solve(b), int(np.prod(np.sign(d))) * _parity(lu.perm_r) * _parity(lu.perm_c)
+    lu, piv = sla.lu_factor(A)
+    swaps = np.count_nonzero(piv != np.arange(piv.size))
+    return sla.lu_solve((lu, piv), b), int(np.prod(np.sign(np.diag(lu)))) * (-1) ** swaps
+
+
 def _tangent(J, dl, t_prev):
-    t = _solve(_bordered(J, dl, t_prev), np.append(np.zeros(J.shape[0]), 1.0))
-    return t / np.linalg.norm(t)
+    """The unit tangent (oriented along t_prev) and the sign of det [[J, dl], [t_prev^T]]: the
+    orientation of the branch, constant along it between bifurcation points, so a corrector that
+    lands on another branch of the same shape shows as a change of sign."""
+    t, sign = _solve_with_sign(_bordered(J, dl, t_prev), np.append(np.zeros(J.shape[0]), 1.0))
+    return t / np.linalg.norm(t), sign
 
 
 def continue_branch(fun: Callable, x0: np.ndarray, lam0: float, lam_end: float, *, x_scale, lam_scale: float,
@@ -246,22 +280,26 @@ def continue_branch(fun: Callable, x0: np.ndarray, lam0: float, lam_end: float, 
         callback(points[-1])
     e_lam = np.zeros(y.size + 1)
     e_lam[-1] = direction
-    t = _tangent(J, dl, e_lam)
+    t, _ = _tangent(J, dl, e_lam)
     if t[-1] * direction < 0:
         t = -t
+    t, orient = _tangent(J, dl, t)
     ds = opts.ds0
     cos_max = np.cos(np.deg2rad(opts.max_turn_deg))
     redo = 0
     while (mu - mu_end) * direction < 0:
         if len(points) >= opts.max_points:
             raise ContinuationError(f"continuation stopped after {opts.max_points} points at "
-                                    f"lam = {mu * lam_scale:.9g} before reaching {lam_end:.9g}")
+                                    f"lam = {mu * lam_scale:.9g} before reaching {lam_end:.9g}; the last "
+                                    f"solution is {np.max(np.abs(y)):.3g} times its scale"
+                                    + ("" if np.max(np.abs(y)) < 100 else " (growing without bound: an undamped "
+                                       "resonance that friction cannot hold?)"))
         if adapt is not None and redo == 0:
             x_new = adapt.before_step(y * x_scale, mu * lam_scale)
             if x_new is not None:
                 y = x_new / x_scale
                 R, J, dl = g(y, mu)
-                t = _tangent(J, dl, t)
+                t, orient = _tangent(J, dl, t)
         z_p = np.append(y, mu) + ds * t
         failure, changed = None, False
         try:
@@ -274,19 +312,28 @@ def continue_branch(fun: Callable, x0: np.ndarray, lam0: float, lam_end: float, 
             if changed:
                 # the problem changed: the tangent at the last accepted point, then the same step again
                 R, J, dl = g(y, mu)
-                t = t_new = _tangent(J, dl, t)
+                t, orient = _tangent(J, dl, t)
+                t_new, orient_new = t, orient
                 log.debug("step redone at lam=%.6g: the problem changed", mu_new * lam_scale)
             else:
                 R, J, dl = g(y_new, mu_new)
-                t_new = _tangent(J, dl, t)
+                t_new, orient_new = _tangent(J, dl, t)
             # A true corner of the branch (slip onset on a sampled period is one) turns the
             # tangent however short the step; only steps longer than turn_ds_floor are refused.
             jump = float(np.linalg.norm(np.append(y_new - y, mu_new - mu)))
             if not changed and jump > opts.max_jump * ds and ds > opts.turn_ds_floor:
                 # the hyperplane met the branch far from the predictor: another part of it
                 failure = f"corrector landed {jump / ds:.1f} step lengths away"
+            elif not changed and orient_new != orient and ds > opts.turn_ds_floor:
+                # the corrector met another branch (or passed a bifurcation point): never silently
+                failure = "the orientation of the branch (sign of the bordered Jacobian) changed"
             elif float(t_new @ t) < cos_max and ds > opts.turn_ds_floor:
                 failure = f"tangent turned by {np.rad2deg(np.arccos(np.clip(t_new @ t, -1, 1))):.1f} deg"
+            elif not changed and opts.max_rel_change is not None and (rel := np.linalg.norm(y_new - y) / max(
+                    np.linalg.norm(y), np.linalg.norm(y_new), 1e-300)) > opts.max_rel_change:
+                # however short the step: x flipped sign (a branch through an unbounded resonance,
+                # or another branch met by the hyperplane) -- never accepted silently
+                failure = f"the solution changed by {rel:.2f} times its size in one step"
             elif float(t_new @ t) < -np.cos(np.deg2rad(opts.max_reversal_deg)):
                 # however short the step: a tangent that reverses retraces the branch backwards
                 failure = f"tangent reversed ({np.rad2deg(np.arccos(np.clip(t_new @ t, -1, 1))):.1f} deg)"
@@ -313,7 +360,7 @@ def continue_branch(fun: Callable, x0: np.ndarray, lam0: float, lam_end: float, 
                 f"does not come back to lam_end = {lam_end:.9g}")
         t_prev = t
         redo = 0
-        y, mu, t = y_new, mu_new, t_new
+        y, mu, t, orient = y_new, mu_new, t_new, orient_new
         x = y * x_scale
         points.append(ContinuationPoint(x, mu * lam_scale, it, ds, extra(x, mu * lam_scale) if extra else None,
                                         residual=res))
