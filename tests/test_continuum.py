@@ -322,13 +322,23 @@ def test_mpi_two_ranks_equal_serial(tmp_path):
     subprocess.run(_mpirun() + args[:-1] + ["--plots", "--out", str(tmp_path / "mpi")], check=True, env=env, cwd=ROOT,
                    timeout=600)
     assert len(list((tmp_path / "mpi").glob("interface_*.png"))) == 1  # drawn once, by rank 0
-    a = np.load(tmp_path / "serial" / "branch.npz")
-    b = np.load(tmp_path / "mpi" / "branch.npz")
-    assert a["omega"].shape == b["omega"].shape
-    assert np.abs(a["omega"] - b["omega"]).max() <= 1e-8 * a["omega"].max()
-    for k in a.files:
-        if k.startswith("amp") or k == "U":
-            assert np.abs(a[k] - b[k]).max() <= 1e-8 * np.abs(a[k]).max(), k
+    # The ROM's modal coordinates (and so the arclength metric and the points' omegas) depend on
+    # the eigenvectors SLEPc returns, which differ between layouts within its tolerance; the
+    # physical curve does not.  The first point (the linear solution at omega_min, the same omega
+    # on both) agrees to 1e-8 (measured 4e-10); every MPI point lies on the serial curve: a cubic
+    # spline through the serial points, evaluated at the MPI omegas (at most 0.02 rad/s from a
+    # serial point, against steps of 0.6 rad/s or more), matches to 1e-6 of the peak (measured 2e-7,
+    # while the points' own omegas drift by up to 1e-5 relative along the branch).
+    from scipy.interpolate import CubicSpline
+
+    a = np.loadtxt(tmp_path / "serial" / "frf.csv", delimiter=",", skiprows=1)
+    b = np.loadtxt(tmp_path / "mpi" / "frf.csv", delimiter=",", skiprows=1)
+    assert a[0, 0] == b[0, 0] and b[-1, 0] >= a[-1, 0] - 1e-9
+    for c in range(2, a.shape[1]):
+        peak = a[:, c].max()
+        assert abs(a[0, c] - b[0, c]) <= 1e-8 * a[0, c], c
+        assert np.abs(CubicSpline(a[:, 0], a[:, c])(b[:, 0]) - b[:, c]).max() <= 1e-6 * peak, c
+        assert b[:, c].max() == pytest.approx(peak, rel=1e-4)
     import json
     sa = json.loads((tmp_path / "mpi" / "summary.json").read_text())
     assert sa["mpi_ranks"] == 2
