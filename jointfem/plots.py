@@ -105,7 +105,8 @@ def plot_compare(results, output: str, frf_path: Path, pareto_path: Path, *, tit
         ax.loglog(r.online_s, err, "o")
         ax.annotate(f"{r.spec.label} ({r.size_max})", (r.online_s, err), fontsize=7, xytext=(4, 3),
                     textcoords="offset points")
-    ax.axvline(results[0].online_s, color="k", ls="--", lw=1, label=f"full order ({results[0].online_s:.1f} s)")
+    ax.axvline(results[0].online_s, color="k", ls="--", lw=1,
+               label=f"{results[0].spec.label} reference ({results[0].online_s:.1f} s)")
     ax.set_xlabel("online time [s]")
     ax.set_ylabel("largest curve error [% of peak]")
     return Path(frf_path), finish(fig, ax, pareto_path, title=title, legend_size=7)
