@@ -1,6 +1,8 @@
 """Reduced-order models: the penalty ROM against the full model, the CMS family, the active set."""
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 import scipy.sparse as sp
@@ -305,5 +307,32 @@ def test_compare_against_the_exact_condensation_equals_against_full_order():
     rom_full = (1 + full[1].peak_amp_err_pct / 100) * a_full
     rom_exact = (1 + exact[1].peak_amp_err_pct / 100) * a_exact
     assert rom_exact == pytest.approx(rom_full, rel=1e-10)
+    # a denser reference (smaller steps for it alone): more points, the same peak, the ROM untouched
+    dense = compare(s, spec, sweep, output="b1.mid.uy", num_freq=3, reference="exact", reference_ds_max=0.02)
+    assert dense[0].frf.num_points > 1.5 * exact[0].frf.num_points
+    assert dense[0].frf.peak("b1.mid.uy")[1] == pytest.approx(a_exact, rel=2e-4)
+    assert dense[1].frf.num_points == exact[1].frf.num_points
     with pytest.raises(RomError, match="--reference"):
         compare(s, spec, sweep, output="b1.mid.uy", reference="cb")
+
+
+@pytest.mark.parametrize("ds_max", [0.1, 0.05])
+def test_chord_error_estimate_bounds_the_reference_polyline(ds_max):
+    """The reference's chord error (how far the polyline through its points strays from its curve)
+    estimated from its own points, against the true one: the distance of a 10x denser sweep's
+    points from that polyline (SDOF Jenkins oscillator, H = 3).  Measured: 1.07 % against 1.04 %
+    at ds_max = 0.1, 1.39 % against 0.39 % at 0.05 (uneven steps around the peak): an estimate
+    that may overstate, never understate by more than a factor 2."""
+    from jointfem.rom.compare import chord_error_estimate, polyline_distance
+    from jointfem.scene import create_structure, load_scene
+
+    s = create_structure(load_scene(Path(__file__).resolve().parents[1] / "demos" / "sdof_jenkins.toml"))
+    h = Harmonics(3, 64)
+    coarse = compute_frf(s, SweepOptions(0.5, 2.0, h, ContinuationOptions(ds_max=ds_max)))
+    dense = compute_frf(s, SweepOptions(0.5, 2.0, h, ContinuationOptions(ds_max=0.002)))
+    w0, a0 = coarse.peak("m.x")
+    P = np.column_stack([coarse.omega / w0, coarse.amplitude(coarse.outputs["m.x"]) / a0])
+    Q = np.column_stack([dense.omega / w0, dense.amplitude(dense.outputs["m.x"]) / a0])
+    true = polyline_distance(P, Q)
+    assert true > 1e-3  # the coarse polyline does stray
+    assert 0.5 * true <= chord_error_estimate(coarse, "m.x") <= 5.0 * true

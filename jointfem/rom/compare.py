@@ -7,7 +7,7 @@ the same run with the same harmonics, samples and tolerances.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -55,13 +55,29 @@ def curve_error(frf: FrequencyResponse, ref: FrequencyResponse, output: str) -> 
     """Largest distance of the ROM's points from the reference curve (a polyline through its
     points), in the plane of (omega / omega_peak, amplitude / amplitude_peak) of the reference.
 
-    The ROM's points are solutions, the reference is dense, so this measures the ROM and not the
-    chords between sparse points; a fold or loop is fine.  (A ROM that misses a loop of the
+    The ROM's points are solutions; with a dense reference this measures the ROM and not the
+    chords between sparse points (:func:`chord_error_estimate` says how dense; ``compare``'s
+    ``reference_ds_max`` makes it denser); a fold or loop is fine.  (A ROM that misses a loop of the
     reference entirely shows up in the peak errors, not here.)
     """
     w0, a0 = ref.peak(output)
     P = np.column_stack([ref.omega / w0, ref.amplitude(ref.outputs[output]) / a0])
     Q = np.column_stack([frf.omega / w0, frf.amplitude(frf.outputs[output]) / a0])
+    return polyline_distance(P, Q)
+
+
+def chord_error_estimate(ref: FrequencyResponse, output: str) -> float:
+    """How far the polyline through the reference's points may be from its curve, in the units
+    of :func:`curve_error`: the distance of its odd points from the polyline through its even
+    ones (chords twice as long), divided by 4 (a chord's sag grows as its length squared).  A
+    curve error below this is not resolved by the reference."""
+    w0, a0 = ref.peak(output)
+    P = np.column_stack([ref.omega / w0, ref.amplitude(ref.outputs[output]) / a0])
+    return polyline_distance(P[::2], P[1::2]) / 4.0 if len(P) >= 4 else float("nan")
+
+
+def polyline_distance(P: np.ndarray, Q: np.ndarray) -> float:
+    """Largest distance of the points Q (m x 2) from the polyline through the points P (n x 2)."""
     A, AB = P[:-1], P[1:] - P[:-1]
     L2 = np.maximum((AB**2).sum(axis=1), 1e-300)
     t = np.clip(((Q[:, None, :] - A[None]) * AB[None]).sum(-1) / L2[None], 0.0, 1.0)
@@ -107,14 +123,22 @@ class MethodResult:
 
 
 def compare(structure: Structure, specs: list[MethodSpec], sweep, *, output: str, num_freq: int = 9,
-            progress=None, reference: str = "full", repeats: int = 1) -> list[MethodResult]:
+            progress=None, reference: str = "full", repeats: int = 1,
+            reference_ds_max: float | None = None) -> list[MethodResult]:
     """Solve the reference (full order, or the exact condensation: the same solution, cheaper on
     a large continuum) and every ROM of ``specs``; the first result is the reference.  Each ROM's
-    online time is the median of ``repeats`` sweeps (the reference is swept once)."""
+    online time is the median of ``repeats`` sweeps (the reference is swept once).
+
+    The curve error measures the ROM's points against the polyline through the reference's; a
+    smaller ``reference_ds_max`` makes that polyline dense where the sweep's own steps would leave
+    chords as long as the errors to be measured."""
     from ..frf import compute_frf
 
     if reference not in ("full", "exact"):
         raise RomError(f"--reference: {reference!r}: choose full or exact")
+    ref_sweep = sweep if reference_ds_max is None else replace(
+        sweep, continuation=replace(sweep.continuation, ds_max=reference_ds_max,
+                                    ds0=min(sweep.continuation.ds0, reference_ds_max)))
     w2, _ = eigen(structure.K_lin, structure.M, num_freq, what="full linearised model")
     w_ref = np.sqrt(w2)
     specs = [MethodSpec(reference, RomOptions())] + [s for s in specs if s.method not in ("full", reference)]
@@ -140,7 +164,7 @@ def compare(structure: Structure, specs: list[MethodSpec], sweep, *, output: str
             progress(spec.label)
         t0 = time.perf_counter()
         try:
-            frf = compute_frf(model, sweep)
+            frf = compute_frf(model, sweep if ref is not None else ref_sweep)
             online = time.perf_counter() - t0
             if ref is not None and repeats > 1:
                 times = [online]
