@@ -55,7 +55,8 @@ def curve_error(frf: FrequencyResponse, ref: FrequencyResponse, output: str) -> 
     """Largest distance of the ROM's points from the reference curve (a polyline through its
     points), in the plane of (omega / omega_peak, amplitude / amplitude_peak) of the reference.
 
-    The ROM's points are solutions; with a dense reference this measures the ROM and not the
+    ROM points outside the reference's omega range are left out (both sweeps cover the requested
+    range; each ends at its own first step past it).  The ROM's points are solutions; with a dense reference this measures the ROM and not the
     chords between sparse points (:func:`chord_error_estimate` says how dense; ``compare``'s
     ``reference_ds_max`` makes it denser); a fold or loop is fine.  (A ROM that misses a loop of the
     reference entirely shows up in the peak errors, not here.)
@@ -63,7 +64,9 @@ def curve_error(frf: FrequencyResponse, ref: FrequencyResponse, output: str) -> 
     w0, a0 = ref.peak(output)
     P = np.column_stack([ref.omega / w0, ref.amplitude(ref.outputs[output]) / a0])
     Q = np.column_stack([frf.omega / w0, frf.amplitude(frf.outputs[output]) / a0])
-    return polyline_distance(P, Q)
+    # only where the reference exists: each sweep stops at its own first step past omega_end
+    inside = (frf.omega >= ref.omega.min()) & (frf.omega <= ref.omega.max())
+    return polyline_distance(P, Q[inside])
 
 
 def chord_error_estimate(ref: FrequencyResponse, output: str) -> float:
