@@ -249,6 +249,7 @@ def bench_convergence() -> dict:
     s = create_structure(parse_scene(data, "sdof_jenkins.toml (F = 0.5)"))
 
     from jointfem.continuation.arclength import solve_newton
+    from jointfem.frf import newton_system
     from jointfem.hbm.residual import HBMResidual
 
     def peak(H, N):
@@ -259,7 +260,7 @@ def bench_convergence() -> dict:
         # and at fixed omega = 1.29 (near the peak), by Newton from the nearest point
         r = HBMResidual(s, h)
         k = int(np.argmin(np.abs(frf.omega - 1.29)))
-        U, _ = solve_newton(lambda U, om: (lambda e: (e.R, e.J, e.dR_domega))(r.evaluate(U, om)), frf.U[k], 1.29,
+        U, _ = solve_newton(newton_system(r), frf.U[k], 1.29,
                             x_scale=1.0, r_scale=0.5)
         return w, a, h.amplitude(U.reshape(h.num_hc, 1)[:, 0], 1), time.perf_counter() - t, frf.num_points
 

@@ -26,6 +26,15 @@ class SweepOptions:
     continuation: ContinuationOptions = field(default_factory=ContinuationOptions)
 
 
+def newton_system(problem):
+    """``(U, omega) -> (R, dR/dU, dR/domega)`` of a problem with ``evaluate`` (HBMResidual, a ROM):
+    the function ``solve_newton`` and the continuation take."""
+    def fun(U, omega):
+        ev = problem.evaluate(U, omega, jacobian=True)
+        return ev.R, ev.J, ev.dR_domega
+    return fun
+
+
 def compute_scales(structure: Structure, omega_start: float, omega_end: float, *, num: int = 201) -> np.ndarray:
     """Per-DOF displacement scale: the largest stuck linear amplitude over the range, m.
 
@@ -135,9 +144,7 @@ def compute_frf(model, options: SweepOptions, *,
     def evaluate(U, omega, jacobian):
         return problem.evaluate(U, omega, jacobian=jacobian)  # HBMResidual keeps the last one
 
-    def fun(U, omega):
-        ev = evaluate(U, omega, True)
-        return ev.R, ev.J, ev.dR_domega
+    fun = newton_system(problem)
 
     def extra(U, omega):
         mask = getattr(problem, "mask", None)

@@ -59,20 +59,25 @@ class FrequencyResponse:
 
     def peak(self, name: str) -> tuple[float, float]:
         """(omega, amplitude) of the largest first-harmonic amplitude of an output, parabola-refined."""
-        a = self.amplitude(self.outputs[name])
-        i = int(np.argmax(a))
-        if 0 < i < a.size - 1:
-            w = self.omega[i - 1 : i + 2]
-            c = np.polyfit(w - w[1], a[i - 1 : i + 2], 2)
-            if c[0] < 0:
-                dw = -c[1] / (2 * c[0])
-                if abs(dw) <= max(abs(w[2] - w[1]), abs(w[1] - w[0])):
-                    return float(w[1] + dw), float(np.polyval(c, dw))
-        return float(self.omega[i]), float(a[i])
+        return parabola_peak(self.omega, self.amplitude(self.outputs[name]))
 
     def state_fractions(self) -> np.ndarray:
         """Fraction of the period in each state, shape (num_points, num_pairs, 3)."""
         return np.stack([(self.states == s).mean(axis=1) for s in range(3)], axis=-1)
+
+
+def parabola_peak(omega: np.ndarray, amp: np.ndarray) -> tuple[float, float]:
+    """(omega, amplitude) of the largest amplitude, refined by the parabola through it and its two
+    neighbours when that parabola has its top within one step of the point."""
+    i = int(np.argmax(amp))
+    if 0 < i < amp.size - 1:
+        w = omega[i - 1 : i + 2]
+        c = np.polyfit(w - w[1], amp[i - 1 : i + 2], 2)
+        if c[0] < 0:
+            dw = -c[1] / (2 * c[0])
+            if abs(dw) <= max(abs(w[2] - w[1]), abs(w[1] - w[0])):
+                return float(w[1] + dw), float(np.polyval(c, dw))
+    return float(omega[i]), float(amp[i])
 
 
 def _check_finite(name: str, a: np.ndarray):

@@ -18,7 +18,7 @@ import pytest
 
 from jointfem.continuation.arclength import ContinuationError, ContinuationOptions, solve_newton
 from jointfem.contact.jenkins import SEPARATED, STICK
-from jointfem.frf import SweepOptions, compute_frf
+from jointfem.frf import SweepOptions, compute_frf, newton_system
 from jointfem.hbm.harmonics import Harmonics
 from jointfem.hbm.residual import HBMResidual
 from jointfem.models.lumped import ForceSpec, JenkinsSpec, LinkSpec, LumpedSpec, MassSpec, create_lumped
@@ -69,7 +69,7 @@ def test_soft_normal_spring_is_a_constant_normal_load():
     sols = []
     for spec in (xz(kn=1e-6), xz(normal=False)):
         r = HBMResidual(create_lumped(spec), h)
-        U, _ = solve_newton(lambda U, w: (lambda e: (e.R, e.J, e.dR_domega))(r.evaluate(U, w)),
+        U, _ = solve_newton(newton_system(r),
                             r.linear_solution(1.4), 1.4, x_scale=1.0, r_scale=0.8)
         sols.append(U)
     assert np.abs(sols[0] - sols[1]).max() < 1e-5 * np.abs(sols[1]).max()
@@ -231,7 +231,7 @@ def test_close_resonance_with_separation_folds_and_matches_time_integration():
     fine = Harmonics(7, 4096)
     for w, t in zip(targets, ti[:, 1]):
         k = int(np.argmin(np.abs(frf.omega - w)))
-        U, _ = solve_newton(lambda U, om: (lambda e: (e.R, e.J, e.dR_domega))(hbm.evaluate(U, om)), frf.U[k], w,
+        U, _ = solve_newton(newton_system(hbm), frf.U[k], w,
                             x_scale=np.abs(frf.U).max(axis=0) + 1e-12, r_scale=0.1)
         z = fine.to_time(U.reshape(h.num_hc, 2)[:, 1])
         # H = 7 against RK4 (first order at the contact events, dt = T / 2000): 1 %
@@ -244,7 +244,7 @@ def _solve_at(F, H, N, w=1.29):
     """Half peak-to-peak of the SDOF oscillator at fixed w (stick-slip near the peak), by Newton."""
     h = Harmonics(H, N)
     r = HBMResidual(create_lumped(sdof(F)), h)
-    U, _ = solve_newton(lambda U, om: (lambda e: (e.R, e.J, e.dR_domega))(r.evaluate(U, om)),
+    U, _ = solve_newton(newton_system(r),
                         0.8 * r.linear_solution(w), w, x_scale=1.0, r_scale=F)
     assert np.all(np.isfinite(U))
     return 0.5 * np.ptp(Harmonics(H, 2**14).to_time(U.reshape(h.num_hc, 1)[:, 0]))

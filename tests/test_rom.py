@@ -9,7 +9,7 @@ import scipy.sparse as sp
 
 from jointfem.contact.jenkins import compute_aft
 from jointfem.continuation.arclength import ContinuationOptions, solve_newton
-from jointfem.frf import SweepOptions, compute_frf
+from jointfem.frf import SweepOptions, compute_frf, newton_system
 from jointfem.hbm.harmonics import Harmonics
 from jointfem.hbm.residual import HBMResidual
 from jointfem.linalg import eigen
@@ -85,14 +85,14 @@ def test_penalty_complete_basis_is_the_full_model():
     prob.mask[:] = True
     x_scale = np.ones(full.num_unknowns)
     for omega, opens in ((1700.0, True), (1640.0, False)):  # at 1700 rad/s it is open a quarter period
-        U, _ = solve_newton(lambda U, w: (lambda e: (e.R, e.J, e.dR_domega))(full.evaluate(U, w)),
+        U, _ = solve_newton(newton_system(full),
                             full.linear_solution(omega), omega, x_scale=x_scale, r_scale=3.0)
         z = _rom_coordinates(rom, full, U, omega)
         ev = prob.evaluate(z, omega, jacobian=False)
         assert np.any(ev.contact[0].state_t == 2) == opens
         # (the residual of this mapped point is not a test: the stiffest axial mode, 2e15 N/m,
         # turns a 1e-16 m round-off in its coordinate into 0.2 N; Newton removes it)
-        z2, _ = solve_newton(lambda z, w: (lambda e: (e.R, e.J, e.dR_domega))(prob.evaluate(z, w)),
+        z2, _ = solve_newton(newton_system(prob),
                              z, omega, x_scale=np.ones(z.size), r_scale=3.0)
         u_rom = (z2.reshape(h.num_hc, -1) @ rom.T.T).ravel()
         assert np.abs(u_rom - U).max() < 1e-8 * np.abs(U).max()

@@ -75,7 +75,7 @@ def jointfem_at(case: dict, frf, omegas: np.ndarray) -> np.ndarray:
     the nearest point of its own branch: the curves are compared point by point, free of any
     interpolation between points."""
     from jointfem.continuation.arclength import NewtonOptions, solve_newton
-    from jointfem.frf import compute_scales
+    from jointfem.frf import compute_scales, newton_system
     from jointfem.hbm.harmonics import Harmonics
     from jointfem.hbm.residual import HBMResidual
     from jointfem.models.lumped import create_lumped
@@ -89,7 +89,7 @@ def jointfem_at(case: dict, frf, omegas: np.ndarray) -> np.ndarray:
     amps = []
     for w in omegas:
         k = int(np.argmin(np.abs(frf.omega - w)))
-        U, _ = solve_newton(lambda U, om: (lambda e: (e.R, e.J, e.dR_domega))(r.evaluate(U, om)), frf.U[k], float(w),
+        U, _ = solve_newton(newton_system(r), frf.U[k], float(w),
                             x_scale=scale, r_scale=fmax, options=NewtonOptions(tol=case["tol"]))
         amps.append(h.amplitude(U.reshape(h.num_hc, -1)[:, out], 1))
     return np.array(amps)
@@ -108,19 +108,9 @@ def run_pyharm(name: str, repeats: int) -> dict:
     return res
 
 
-def peak(omega: np.ndarray, amp: np.ndarray) -> tuple[float, float]:
-    i = int(np.argmax(amp))
-    if 0 < i < amp.size - 1:
-        w = omega[i - 1:i + 2]
-        c = np.polyfit(w - w[1], amp[i - 1:i + 2], 2)
-        if c[0] < 0:
-            dw = -c[1] / (2 * c[0])
-            if abs(dw) <= np.abs(np.diff(w)).max():
-                return float(w[1] + dw), float(np.polyval(c, dw))
-    return float(omega[i]), float(amp[i])
-
-
 def compare(names=("sdof", "separation", "chain"), repeats: int = 3, plot: Path | None = None) -> list[dict]:
+    from jointfem.results import parabola_peak
+
     rows = []
     curves = []
     for name in names:
@@ -129,8 +119,8 @@ def compare(names=("sdof", "separation", "chain"), repeats: int = 3, plot: Path 
         j = run_jointfem(case, repeats)
         print(f"peer: {name} (pyHarm) ...", flush=True)
         p = run_pyharm(name, repeats)
-        wj, aj = peak(j["omega"], j["amp"])
-        wp, ap = peak(p["omega"], p["amp"])
+        wj, aj = parabola_peak(j["omega"], j["amp"])
+        wp, ap = parabola_peak(p["omega"], p["amp"])
         diff = np.abs(jointfem_at(case, j["frf"], p["omega"]) - p["amp"]).max() / aj
         rows.append({"case": case["name"], "H": case["H"], "N": case["N"], "tol": case["tol"],
                      "unknowns": j["unknowns"], "peak_amp_diff": ap / aj - 1, "peak_freq_diff": wp / wj - 1,

@@ -61,9 +61,7 @@ def curve_error(frf: FrequencyResponse, ref: FrequencyResponse, output: str) -> 
     ``reference_ds_max`` makes it denser); a fold or loop is fine.  (A ROM that misses a loop of the
     reference entirely shows up in the peak errors, not here.)
     """
-    w0, a0 = ref.peak(output)
-    P = np.column_stack([ref.omega / w0, ref.amplitude(ref.outputs[output]) / a0])
-    Q = np.column_stack([frf.omega / w0, frf.amplitude(frf.outputs[output]) / a0])
+    P, Q = _normalised(ref, ref, output), _normalised(frf, ref, output)
     # only where the reference exists: each sweep stops at its own first step past omega_end
     inside = (frf.omega >= ref.omega.min()) & (frf.omega <= ref.omega.max())
     return polyline_distance(P, Q[inside])
@@ -74,9 +72,14 @@ def chord_error_estimate(ref: FrequencyResponse, output: str) -> float:
     of :func:`curve_error`: the distance of its odd points from the polyline through its even
     ones (chords twice as long), divided by 4 (a chord's sag grows as its length squared).  A
     curve error below this is not resolved by the reference."""
-    w0, a0 = ref.peak(output)
-    P = np.column_stack([ref.omega / w0, ref.amplitude(ref.outputs[output]) / a0])
+    P = _normalised(ref, ref, output)
     return polyline_distance(P[::2], P[1::2]) / 4.0 if len(P) >= 4 else float("nan")
+
+
+def _normalised(frf: FrequencyResponse, ref: FrequencyResponse, output: str) -> np.ndarray:
+    """frf's points as (omega / omega_peak, amplitude / amplitude_peak) of the reference's peak."""
+    w0, a0 = ref.peak(output)
+    return np.column_stack([frf.omega / w0, frf.amplitude(frf.outputs[output]) / a0])
 
 
 def polyline_distance(P: np.ndarray, Q: np.ndarray) -> float:
@@ -151,11 +154,10 @@ def compare(structure: Structure, specs: list[MethodSpec], sweep, *, output: str
         if spec.method == "full":
             models.append((structure, 0.0, np.zeros(num_freq)))
             continue
-        if spec.method == "exact":
-            model = build_rom(structure, "exact", spec.options)
+        model = build_rom(structure, spec.method, spec.options)
+        if spec.method == "exact":  # the full model's equations: no modal truncation to measure
             models.append((model, model.offline_s, np.zeros(num_freq)))
             continue
-        model = build_rom(structure, spec.method, spec.options)
         wr = model.natural_frequencies(num_freq)
         fe = np.full(num_freq, np.nan)
         fe[:wr.size] = wr / w_ref[:wr.size] - 1.0
@@ -167,15 +169,14 @@ def compare(structure: Structure, specs: list[MethodSpec], sweep, *, output: str
             progress(spec.label)
         t0 = time.perf_counter()
         try:
-            frf = compute_frf(model, sweep if ref is not None else ref_sweep)
-            online = time.perf_counter() - t0
-            if ref is not None and repeats > 1:
-                times = [online]
-                for _ in range(repeats - 1):
-                    t1 = time.perf_counter()
-                    compute_frf(model, sweep)
-                    times.append(time.perf_counter() - t1)
-                online = float(np.median(times))
+            frf, times = None, []
+            for _ in range(repeats if ref is not None else 1):
+                t1 = time.perf_counter()
+                run = compute_frf(model, sweep if ref is not None else ref_sweep)
+                times.append(time.perf_counter() - t1)
+                if frf is None:
+                    frf = run
+            online = float(np.median(times))
         except (ContinuationError, ConvergenceError, ContactError) as exc:
             if ref is None:
                 raise  # no reference, no comparison
