@@ -3,7 +3,7 @@ docs/benchmarks_offline.md, docs/img/pareto_*.png, docs/img/peer_frf.png) in one
 
 1. AFT with its Jacobian for 1,000 3D pairs x 256 samples (H = 5), median of repeats.
 2. The SDOF Jenkins sweep (demos/sdof_jenkins.toml) and the full-order jointed beam.
-3. Speed against accuracy (``jointfem.rom.compare``): every method at several basis sizes, on
+3. Speed against accuracy (``jointfem.analysis.compare``): every method at several basis sizes, on
    the jointed beam at separation (reference: full order) and on the 3D lap joint at separation
    (reference: the exact condensation), with a Pareto plot each.
 4. Convergence in H (1..25) and N (2H+1..4096): the SDOF oscillator's peak.
@@ -84,7 +84,7 @@ def median_time(fn, repeats: int) -> tuple[float, list[float]]:
 
 def bench_aft(repeats: int) -> dict:
     from jointfem.contact.jenkins import JenkinsPairs, compute_aft
-    from jointfem.hbm.harmonics import Harmonics
+    from jointfem.harmonics import Harmonics
 
     rng = np.random.default_rng(0)
     h = Harmonics(5, 256)
@@ -122,7 +122,7 @@ def _profile_share(fn) -> tuple[float, dict]:
 
 
 def bench_frf(scene_path: Path, *, force_factor=None, H=None, N=None, repeats=3) -> dict:
-    from jointfem.cli import solve_scene
+    from jointfem.app import solve_scene
     from jointfem.scene import load_scene
 
     scene = load_scene(scene_path)
@@ -136,7 +136,7 @@ def bench_frf(scene_path: Path, *, force_factor=None, H=None, N=None, repeats=3)
     solve_scene(scene)  # warm up
     walls, frf = [], None
     for _ in range(repeats):
-        _, frf, *_ = solve_scene(scene)
+        frf = solve_scene(scene).frf
         walls.append(frf.info["time_online_s"])
     _, shares, _ = _profile_share(lambda: solve_scene(scene))
     t = statistics.median(walls)
@@ -153,10 +153,10 @@ LAP3D_METHODS = ("cb:10", "cb:20", "rubin:10", "penalty:5", "penalty:10", "penal
 
 def bench_roms(repeats: int, img: Path) -> dict:
     """The jointed beam at separation (3.0 N, H = 3, N = 1024), every method against full order."""
-    from jointfem.cli import sweep_options
+    from jointfem.app import sweep_options
     from jointfem.plots import plot_compare
     from jointfem.rom import RomOptions
-    from jointfem.rom.compare import chord_error_estimate, compare, parse_method
+    from jointfem.analysis.compare import chord_error_estimate, compare, parse_method
     from jointfem.scene import create_structure, load_scene
 
     scene = load_scene(ROOT / "demos" / "beam2d.toml")
@@ -171,7 +171,7 @@ def bench_roms(repeats: int, img: Path) -> dict:
     chord = chord_error_estimate(results[0].frf, "b1.mid.uy")
     by = {r["method"]: r for r in rows}
     # where the time goes: residual evaluations per point and their cost, for penalty and CB
-    from jointfem.frf import compute_frf
+    from jointfem.analysis.frf import compute_frf
     from jointfem.rom import build_rom
 
     split = {}
@@ -211,10 +211,10 @@ def bench_lap3d(repeats: int, img: Path) -> dict:
     sys.path.insert(0, str(ROOT / "demos"))
     from lap3d_nonlinear import LEVELS, scene_for
 
-    from jointfem.cli import sweep_options
+    from jointfem.app import sweep_options
     from jointfem.plots import plot_compare
     from jointfem.rom import RomOptions
-    from jointfem.rom.compare import chord_error_estimate, compare, parse_method
+    from jointfem.analysis.compare import chord_error_estimate, compare, parse_method
     from jointfem.scene import create_structure
 
     lvl = [k for k in LEVELS if k.startswith("separation")][0]
@@ -239,8 +239,8 @@ def bench_convergence() -> dict:
     first harmonic at omega = 1.29, for H = 1..25 at N = 4096 and for N = 2H+1..4096 at H = 7,
     against H = 25, N = 16384."""
     from jointfem.continuation.arclength import ContinuationOptions
-    from jointfem.frf import SweepOptions, compute_frf
-    from jointfem.hbm.harmonics import Harmonics
+    from jointfem.analysis.frf import SweepOptions, compute_frf
+    from jointfem.harmonics import Harmonics
     from jointfem.scene import create_structure, load_scene, parse_scene
 
     data = load_scene(ROOT / "demos" / "sdof_jenkins.toml").data
@@ -249,7 +249,7 @@ def bench_convergence() -> dict:
     s = create_structure(parse_scene(data, "sdof_jenkins.toml (F = 0.5)"))
 
     from jointfem.continuation.arclength import solve_newton
-    from jointfem.frf import newton_system
+    from jointfem.hbm.problem import newton_system
     from jointfem.hbm.residual import HBMResidual
 
     def peak(H, N):
@@ -315,7 +315,7 @@ def write_markdown(path: Path, m: dict, aft: dict, sdof: dict, beam: dict, comma
     lines += ["", "Shares are of the profiled run's total time (cProfile adds overhead; the wall times above are "
               "unprofiled).", ""]
     lines += ["## Speed against accuracy", "",
-              "`jointfem.rom.compare` (the code behind `jointfem compare`): every method and basis size, with its "
+              "`jointfem.analysis.compare` (the code behind `jointfem compare`): every method and basis size, with its "
               "size (a range when the penalty ROM's active set changes along the branch), RR = largest size / full "
               f"size, offline and online seconds (online: the whole continuation, median of {roms['repeats']} "
               "sweeps; the reference is swept once), Newton iterations per point, and errors of the output's first "

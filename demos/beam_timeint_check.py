@@ -21,7 +21,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from jointfem.cli import solve_scene
+from jointfem.app import solve_scene
 from jointfem.scene import load_scene
 
 HERE = Path(__file__).resolve().parent
@@ -54,7 +54,7 @@ def contact(g, w, kt, kn, mu, N0):
 
 def integrate(structure, U, omega, w0, *, periods: int, steps: int, dof: int):
     """Newmark from the HBM state; returns the response of ``dof`` over the last two periods."""
-    from jointfem.hbm.harmonics import Harmonics
+    from jointfem.harmonics import Harmonics
 
     grp = structure.contacts[0]
     G = grp.gap.tocsr()
@@ -121,7 +121,8 @@ def main(argv=None) -> int:
         import dataclasses
 
         scene = dataclasses.replace(scene, solver=dataclasses.replace(scene.solver, samples=args.samples))
-    structure, frf, *_ = solve_scene(scene, progress=False)
+    sol = solve_scene(scene, progress=False)
+    structure, frf = sol.structure, sol.frf
     dof = structure.outputs["b1.mid.uy"]
     amp = frf.half_peak_to_peak(dof)
     sep = (frf.states == 2).mean(axis=(1, 2))
@@ -136,7 +137,7 @@ def main(argv=None) -> int:
         picks["separated, half-way to the fold"] = (top + fold) // 2
         picks["separated, lowest frequency"] = fold
     from jointfem.hbm.residual import HBMResidual
-    from jointfem.hbm.harmonics import Harmonics
+    from jointfem.harmonics import Harmonics
 
     hbm = HBMResidual(structure, Harmonics(scene.solver.harmonics, scene.solver.samples))
     report = {}

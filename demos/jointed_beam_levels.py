@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from jointfem.cli import solve_scene
+from jointfem.app import solve_scene
 from jointfem.contact.jenkins import SEPARATED, SLIP
 from jointfem.plots import plot_frf, plot_levels
 from jointfem.results import save_frf
@@ -56,7 +56,8 @@ def run(out: Path, *, coarse: bool = False, progress: bool = True) -> dict:
         force = factor * f_sep
         scene = dataclasses.replace(base, name=f"beam2d_{label}",
                                     model=dataclasses.replace(base.model, force=force))
-        structure, frf, *_ = solve_scene(scene, progress=progress)
+        sol = solve_scene(scene, progress=progress)
+        structure, frf = sol.structure, sol.frf
         folder = out / label.replace("-", "_")
         summary = save_frf(frf, folder, summary={"scene": str(scene.path), "level": label, "force_N": force,
                                                  "method": "full", "num_dofs": structure.num_dofs})

@@ -24,11 +24,11 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from jointfem.cli import sweep_options  # noqa: E402
-from jointfem.frf import compute_frf  # noqa: E402
+from jointfem.app import sweep_options  # noqa: E402
+from jointfem.analysis.frf import compute_frf  # noqa: E402
 from jointfem.rom import build_rom  # noqa: E402
 from jointfem.rom.common import RomOptions  # noqa: E402
-from jointfem.rom.compare import curve_error  # noqa: E402
+from jointfem.analysis.compare import curve_error  # noqa: E402
 from jointfem.scene import create_structure, load_scene  # noqa: E402
 
 LEVELS = {

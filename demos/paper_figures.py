@@ -26,12 +26,12 @@ from pathlib import Path
 
 import numpy as np
 
-from jointfem.cli import sweep_options
+from jointfem.app import sweep_options
 from jointfem.contact.jenkins import SEPARATED, SLIP
 from jointfem.linalg import eigen
-from jointfem.plots import _pyplot, finish, plot_compare
+from jointfem.plots import pyplot, finish, plot_compare
 from jointfem.rom import RomOptions, build_rom
-from jointfem.rom.compare import MethodSpec, compare, to_markdown
+from jointfem.analysis.compare import MethodSpec, compare, to_markdown
 from jointfem.scene import create_structure, load_scene
 
 HERE = Path(__file__).resolve().parent
@@ -58,7 +58,7 @@ def fig5(structure, img: Path) -> str:
         errs[label] = e
         rows.append(f"| {label} | {rom.size} | {rom.size / structure.num_dofs:.3f} | "
                     + " | ".join(f"{x:.1e}" for x in e) + f" | {np.abs(e).max():.1e} |")
-    plt = _pyplot()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(7.5, 4.5))
     for label, e in errs.items():
         ax.semilogy(np.arange(1, 10), np.maximum(np.abs(e), 1e-16), "o-", ms=3, label=label)
@@ -137,7 +137,7 @@ def convergence(structure, sweep, img: Path, quick: bool) -> str:
             specs.append(spec(method, modes, tvd))
     results = compare(structure, specs, sweep, output=OUTPUT,
                       progress=lambda s: print(f"  convergence: {s}", file=sys.stderr, flush=True))
-    plt = _pyplot()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(7.5, 4.5))
     by = {}
     for r in results[1:]:

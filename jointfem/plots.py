@@ -8,7 +8,7 @@ import numpy as np
 from .results import FrequencyResponse
 
 
-def _pyplot():
+def pyplot():
     import matplotlib
 
     matplotlib.use("Agg")
@@ -25,14 +25,14 @@ def finish(fig, ax, path: Path, *, title: str = "", legend_size: int = 8) -> Pat
         ax.set_title(title)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
-    _pyplot().close(fig)
+    pyplot().close(fig)
     return Path(path)
 
 
 def plot_frf(frf: FrequencyResponse, path: Path, *, title: str = "") -> Path:
     """FRF of every output (first-harmonic amplitude and half peak-to-peak, m, against Hz), and
     below it the share of contact pairs sticking, slipping and separated along the branch."""
-    plt = _pyplot()
+    plt = pyplot()
     has_contact = frf.states.shape[-1] > 0
     fig, axes = plt.subplots(2 if has_contact else 1, 1, figsize=(7.5, 6.5 if has_contact else 4.2), sharex=True,
                              squeeze=False, gridspec_kw={"height_ratios": [3, 1.2]} if has_contact else None)
@@ -73,7 +73,7 @@ def plot_frf(frf: FrequencyResponse, path: Path, *, title: str = "") -> Path:
 
 def plot_levels(curves: list[tuple[str, FrequencyResponse]], output: str, path: Path, *, title: str = "") -> Path:
     """Several FRFs of one output (e.g. forcing levels), amplitude normalised by the force."""
-    plt = _pyplot()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(7.5, 4.5))
     for label, frf in curves:
         ax.plot(frf.omega / (2 * np.pi), frf.amplitude(frf.outputs[output]), label=label)
@@ -85,7 +85,7 @@ def plot_levels(curves: list[tuple[str, FrequencyResponse]], output: str, path: 
 
 def plot_compare(results, output: str, frf_path: Path, pareto_path: Path, *, title: str = "") -> tuple[Path, Path]:
     """Overlaid FRFs of every method, and the largest curve error against the online time."""
-    plt = _pyplot()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(7.5, 4.8))
     for i, r in enumerate(results):
         if r.failure:

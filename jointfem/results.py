@@ -9,8 +9,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .contact.jenkins import STATE_NAMES
-from .hbm.harmonics import Harmonics
+from .contact.law import STATE_NAMES
+from .harmonics import Harmonics
 
 
 class OutputError(RuntimeError):
@@ -87,7 +87,7 @@ def _check_finite(name: str, a: np.ndarray):
         raise OutputError(f"{name} holds a non-finite value at index {tuple(int(i) for i in idx)}; nothing written")
 
 
-def _atomic_write(path: Path, write):
+def atomic_write(path: Path, write):
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=path.suffix)
     os.close(fd)
@@ -101,7 +101,7 @@ def _atomic_write(path: Path, write):
 
 
 def atomic_write_text(path: Path, text: str):
-    _atomic_write(Path(path), lambda p: Path(p).write_text(text))
+    atomic_write(Path(path), lambda p: Path(p).write_text(text))
 
 
 def write_table(rows: list[dict], path: Path):
@@ -115,7 +115,7 @@ def write_table(rows: list[dict], path: Path):
             for r in rows:
                 w.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in r.items()})
 
-    _atomic_write(Path(path), write)
+    atomic_write(Path(path), write)
 
 
 def save_frf(frf: FrequencyResponse, out: Path, *, summary: dict) -> dict:
@@ -131,7 +131,7 @@ def save_frf(frf: FrequencyResponse, out: Path, *, summary: dict) -> dict:
         cols += [frf.amplitude(dof), frf.half_peak_to_peak(dof)]
         header += [f"{name}_amp1_m", f"{name}_halfp2p_m"]
     table = np.column_stack(cols)
-    _atomic_write(out / "frf.csv", lambda p: np.savetxt(p, table, delimiter=",", header=",".join(header),
+    atomic_write(out / "frf.csv", lambda p: np.savetxt(p, table, delimiter=",", header=",".join(header),
                                                         comments="", fmt="%.12e"))
 
     def write_npz(p):
@@ -149,7 +149,7 @@ def save_frf(frf: FrequencyResponse, out: Path, *, summary: dict) -> dict:
                 **({"pair_coords": np.asarray(frf.info["pair_coords"])} if "pair_coords" in frf.info else {}),
                 **{k: np.asarray(v) for k, v in frf.info.get("arrays", {}).items()})
 
-    _atomic_write(out / "branch.npz", write_npz)
+    atomic_write(out / "branch.npz", write_npz)
     peaks = {}
     for name in names:
         w, a = frf.peak(name)
@@ -157,7 +157,7 @@ def save_frf(frf: FrequencyResponse, out: Path, *, summary: dict) -> dict:
     summary = dict(summary)
     summary.update({"num_points": int(frf.num_points), "newton_iterations_total": int(frf.iterations.sum()),
                     "peaks": peaks})
-    _atomic_write(out / "summary.json", lambda p: Path(p).write_text(json.dumps(summary, indent=2, default=_json)))
+    atomic_write(out / "summary.json", lambda p: Path(p).write_text(json.dumps(summary, indent=2, default=_json)))
     return summary
 
 

@@ -14,6 +14,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from .continuation.arclength import ContinuationOptions, NewtonOptions
+from .defaults import default_samples
 from .models.beam2d import Beam2DSpec
 from .models.beam2d import dof_names as beam_dof_names
 from .models.beam2d import resolve_dof
@@ -37,13 +39,14 @@ class SolverSpec:
     omega_max: float  # rad/s
     direction: str = "up"  # sweep from omega_min up, or from omega_max down
     harmonics: int = 5
-    samples: int = 256
-    ds0: float = 0.02
-    ds_min: float = 1e-6
-    ds_max: float = 0.1
-    tol: float = 1e-10
-    max_points: int = 5000
-    kink_tol: float = 1e-6  # residual accepted for a corrector stalled on a kink at the smallest steps
+    samples: int = default_samples(5)
+    # the continuation's own defaults (defined once, in jointfem.continuation.arclength)
+    ds0: float = ContinuationOptions.ds0
+    ds_min: float = ContinuationOptions.ds_min
+    ds_max: float = ContinuationOptions.ds_max
+    tol: float = NewtonOptions.tol
+    max_points: int = ContinuationOptions.max_points
+    kink_tol: float = NewtonOptions.relaxed_kink_tol  # residual accepted for a corrector stalled on a kink at the smallest steps
 
     @property
     def omega_start(self) -> float:
@@ -174,15 +177,16 @@ def _solver(t: _Table) -> SolverSpec:
     if hi < lo:
         t.fail("omega_range", rng, "reversed frequency range (omega_min > omega_max); use direction = \"down\" "
                                    "to sweep downwards")
-    H = t.integer("harmonics", 5, ge=1)
-    N = t.integer("samples", max(256, 4 * H + 4))
+    H = t.integer("harmonics", SolverSpec.harmonics, ge=1)
+    N = t.integer("samples", default_samples(H))
     if N < 2 * H + 1:
         t.fail("samples", N, f"must be >= 2*harmonics+1 = {2 * H + 1}")
     spec = SolverSpec(
         omega_min=lo, omega_max=hi, direction=t.string("direction", "up", choices=("up", "down")),
-        harmonics=H, samples=N, ds0=t.number("ds0", 0.02, gt=0), ds_min=t.number("ds_min", 1e-6, gt=0),
-        ds_max=t.number("ds_max", 0.1, gt=0), tol=t.number("tol", 1e-10, gt=0),
-        max_points=t.integer("max_points", 5000, ge=2), kink_tol=t.number("kink_tol", 1e-6, gt=0))
+        harmonics=H, samples=N, ds0=t.number("ds0", SolverSpec.ds0, gt=0),
+        ds_min=t.number("ds_min", SolverSpec.ds_min, gt=0), ds_max=t.number("ds_max", SolverSpec.ds_max, gt=0),
+        tol=t.number("tol", SolverSpec.tol, gt=0), max_points=t.integer("max_points", SolverSpec.max_points, ge=2),
+        kink_tol=t.number("kink_tol", SolverSpec.kink_tol, gt=0))
     if spec.kink_tol > 1e-3:
         t.fail("kink_tol", spec.kink_tol, "must be <= 1e-3 (a residual of 0.1 % of the force)")
     if not spec.ds_min <= spec.ds0 <= spec.ds_max:

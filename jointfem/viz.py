@@ -13,8 +13,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .contact.jenkins import STATE_NAMES
-from .hbm.harmonics import Harmonics
+from .contact.law import STATE_NAMES
+from .harmonics import Harmonics
 from .results import OutputError, load_branch
 
 # one colour per contact state, shared by every picture (stick, slip, separated)
@@ -103,9 +103,9 @@ def plot_state_map(data: dict, path: Path, *, title: str = "") -> Picture:
     from matplotlib.colors import ListedColormap
     from matplotlib.patches import Patch
 
-    from .plots import _pyplot
+    from .plots import pyplot
 
-    plt = _pyplot()
+    plt = pyplot()
     dom = dominant(data)
     P = dom.shape[1]
     fig, ax = plt.subplots(figsize=(8, 1.6 + 0.12 * min(P, 60)))

@@ -7,7 +7,7 @@ shares no code path with jointfem.contact._kernels.
 import numpy as np
 
 from jointfem.contact.jenkins import STICK, SLIP, SEPARATED, ContactError, ContactResult, JenkinsPairs
-from jointfem.hbm.harmonics import Harmonics
+from jointfem.harmonics import Harmonics
 
 
 def _phi(a, b):

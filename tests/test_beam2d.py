@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 import scipy.linalg as sla
 
-from jointfem.frf import SweepOptions, compute_frf
-from jointfem.hbm.harmonics import Harmonics
+from jointfem.analysis.frf import SweepOptions, compute_frf
+from jointfem.harmonics import Harmonics
 from jointfem.models.beam2d import Beam2DSpec, cantilever_frequencies, create_beam2d
 
 ROOT = Path(__file__).resolve().parents[1]

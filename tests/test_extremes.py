@@ -16,8 +16,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from jointfem.cli import sweep_options
-from jointfem.frf import compute_frf
+from jointfem.app import sweep_options
+from jointfem.analysis.frf import compute_frf
 from jointfem.scene import create_structure, load_scene, parse_scene
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -134,7 +134,7 @@ def test_beam_contact_stiffness_extremes_stay_linear_and_well_conditioned(factor
     and the round-off floor of the Newton test cope with a 1e12 spread of stiffness).  The
     penalty ROM (default 10 modes) differs from it only by modal truncation: measured 2.0e-3
     (x 1e-6) and 4.8e-4 (x 1e6), asserted below 5e-3."""
-    from jointfem.rom.common import build_rom
+    from jointfem.rom import build_rom
 
     data = copy.deepcopy(load_scene(ROOT / "demos" / "beam2d.toml").data)
     data["joint"]["kt"] *= factor

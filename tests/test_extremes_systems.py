@@ -18,8 +18,9 @@ import pytest
 
 from jointfem.continuation.arclength import ContinuationError, ContinuationOptions, solve_newton
 from jointfem.contact.jenkins import SEPARATED, STICK
-from jointfem.frf import SweepOptions, compute_frf, newton_system
-from jointfem.hbm.harmonics import Harmonics
+from jointfem.analysis.frf import SweepOptions, compute_frf
+from jointfem.hbm.problem import newton_system
+from jointfem.harmonics import Harmonics
 from jointfem.hbm.residual import HBMResidual
 from jointfem.models.lumped import ForceSpec, JenkinsSpec, LinkSpec, LumpedSpec, MassSpec, create_lumped
 from reference_timeint import steady_amplitudes

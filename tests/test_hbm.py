@@ -8,8 +8,10 @@ import scipy.sparse as sp
 
 from jointfem.continuation.arclength import ContinuationOptions, solve_newton
 from jointfem.contact.jenkins import SEPARATED, SLIP
-from jointfem.frf import SweepOptions, compute_frf, compute_scales, newton_system
-from jointfem.hbm.harmonics import Harmonics
+from jointfem.analysis.frf import SweepOptions, compute_frf
+from jointfem.hbm.forced import compute_scales
+from jointfem.hbm.problem import newton_system
+from jointfem.harmonics import Harmonics
 from jointfem.hbm.residual import HBMResidual
 from jointfem.models.lumped import ForceSpec, JenkinsSpec, LinkSpec, LumpedSpec, MassSpec, create_lumped
 from reference_timeint import steady_amplitudes
@@ -70,7 +72,7 @@ def test_residual_jacobian_matches_finite_differences(dense):
     assert isinstance(ev.J, np.ndarray) == dense
     assert np.abs(J - J_fd).max() <= 1e-6 * np.abs(J_fd).max()
     dw = (hbm.evaluate(U, 1.9 + eps, jacobian=False).R - hbm.evaluate(U, 1.9 - eps, jacobian=False).R) / (2 * eps)
-    np.testing.assert_allclose(ev.dR_domega, dw, atol=1e-7 * np.abs(dw).max())
+    np.testing.assert_allclose(ev.dR_dlam, dw, atol=1e-7 * np.abs(dw).max())
 
 
 def test_linear_limit_equals_closed_form_frf():

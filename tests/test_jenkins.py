@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 from jointfem.contact.jenkins import (SEPARATED, SLIP, STICK, JenkinsPairs, compute_aft, compute_dissipation)
-from jointfem.hbm.harmonics import Harmonics
+from jointfem.harmonics import Harmonics
 from reference_jenkins import compute_aft_reference
 
 

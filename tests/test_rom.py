@@ -9,15 +9,16 @@ import scipy.sparse as sp
 
 from jointfem.contact.jenkins import compute_aft
 from jointfem.continuation.arclength import ContinuationOptions, solve_newton
-from jointfem.frf import SweepOptions, compute_frf, newton_system
-from jointfem.hbm.harmonics import Harmonics
+from jointfem.analysis.frf import SweepOptions, compute_frf
+from jointfem.hbm.problem import newton_system
+from jointfem.harmonics import Harmonics
 from jointfem.hbm.residual import HBMResidual
 from jointfem.linalg import eigen
 from jointfem.models.beam2d import Beam2DSpec, create_beam2d
 from jointfem.models.structure import ContactGroup, Structure
 from jointfem.contact.jenkins import JenkinsPairs
 from jointfem.rom import RomError, RomOptions, build_rom
-from jointfem.rom.compare import curve_error, parse_method
+from jointfem.analysis.compare import curve_error, parse_method
 from jointfem.rom.penalty import PenaltyProblem
 from jointfem.results import FrequencyResponse
 
@@ -105,7 +106,7 @@ def test_penalty_jacobian_matches_finite_differences():
     prob = PenaltyProblem(rom, h)
     prob.mask[:] = [True, False, True, True, False, False]  # pair 0 tangential, pair 1 both: mixed
     rng = np.random.default_rng(3)
-    U = prob.linear_solution(1690.0) * 40 + 1e-6 * rng.standard_normal(prob.num_unknowns)
+    U = prob.initial_guess(1690.0) * 40 + 1e-6 * rng.standard_normal(prob.num_unknowns)
     ev = prob.evaluate(U, 1690.0)
     J = np.asarray(ev.J)
     eps = 1e-7 * np.abs(U).max()
@@ -165,7 +166,7 @@ def test_violation_check_flags_an_inactive_pair():
     h = Harmonics(1, 32)
     rom = build_rom(s, "penalty", RomOptions(modes=6))
     prob = PenaltyProblem(rom, h)
-    U = prob.linear_solution(1690.0)
+    U = prob.initial_guess(1690.0)
     assert not prob.violations(U * 1e-3).any()
     need = prob.violations(U * 10)
     assert need.any()
@@ -243,19 +244,19 @@ def test_method_specs_parse_and_refuse():
 
 def test_compare_reports_a_failed_rom_sweep(monkeypatch):
     """A ROM whose sweep stops is a row with its reason, not the end of the comparison."""
-    import jointfem.frf as frf_mod
+    import jointfem.analysis.compare as compare_mod
     from jointfem.continuation.arclength import ContinuationError
-    from jointfem.rom.compare import compare, to_markdown
+    from jointfem.analysis.compare import compare, to_markdown
 
     s = create_beam2d(Beam2DSpec(elements=6, force=1e-3, **RAYLEIGH))
-    real = frf_mod.compute_frf
+    real = compare_mod.compute_frf
 
     def fake(model, sweep, **kw):
         if getattr(model, "method", "full") == "cb":
             raise ContinuationError("continuation step fell below ds_min (test)")
         return real(model, sweep, **kw)
 
-    monkeypatch.setattr(frf_mod, "compute_frf", fake)
+    monkeypatch.setattr(compare_mod, "compute_frf", fake)
     sweep = SweepOptions(2100.0, 2250.0, Harmonics(1, 16))
     d = RomOptions(modes=6)
     res = compare(s, [parse_method("cb", d), parse_method("penalty", d)], sweep, output="b1.mid.uy", num_freq=3)
@@ -297,7 +298,7 @@ def test_compare_against_the_exact_condensation_equals_against_full_order():
     the same solution as the full-order reference.  The two references' peaks (a parabola through
     each branch's three highest points, which sit at different omegas) agree to 2e-4 (measured
     1e-4); the ROM's sweep is the same in both comparisons, so its errors differ only by that."""
-    from jointfem.rom.compare import compare
+    from jointfem.analysis.compare import compare
 
     s = beam(force=3.0)
     sweep = SweepOptions(1570.0, 1760.0, Harmonics(1, 64))
@@ -327,7 +328,7 @@ def test_chord_error_estimate_bounds_the_reference_polyline(ds_max):
     points from that polyline (SDOF Jenkins oscillator, H = 3).  Measured: 1.07 % against 1.04 %
     at ds_max = 0.1, 1.39 % against 0.39 % at 0.05 (uneven steps around the peak): an estimate
     that may overstate, never understate by more than a factor 2."""
-    from jointfem.rom.compare import chord_error_estimate, polyline_distance
+    from jointfem.analysis.compare import chord_error_estimate, polyline_distance
     from jointfem.scene import create_structure, load_scene
 
     s = create_structure(load_scene(Path(__file__).resolve().parents[1] / "demos" / "sdof_jenkins.toml"))

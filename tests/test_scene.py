@@ -82,8 +82,8 @@ def test_lumped_scene_never_imports_dolfinx(tmp_path):
         "import sys, jointfem\n"
         "from jointfem.scene import load_scene, create_structure\n"
         f"s = create_structure(load_scene({str(ROOT / 'demos' / 'sdof_jenkins.toml')!r}))\n"
-        "from jointfem.frf import compute_frf, SweepOptions\n"
-        "from jointfem.hbm.harmonics import Harmonics\n"
+        "from jointfem.analysis.frf import compute_frf, SweepOptions\n"
+        "from jointfem.harmonics import Harmonics\n"
         "compute_frf(s, SweepOptions(1.2, 1.3, Harmonics(2, 32)))\n"
         "bad = [m for m in ('dolfinx', 'petsc4py', 'slepc4py', 'gmsh', 'mpi4py') if m in sys.modules]\n"
         "assert not bad, bad\n")

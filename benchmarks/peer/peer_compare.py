@@ -46,8 +46,8 @@ def lumped_spec(case: dict):
 
 def run_jointfem(case: dict, repeats: int) -> dict:
     from jointfem.continuation.arclength import ContinuationOptions, NewtonOptions
-    from jointfem.frf import SweepOptions, compute_frf
-    from jointfem.hbm.harmonics import Harmonics
+    from jointfem.analysis.frf import SweepOptions, compute_frf
+    from jointfem.harmonics import Harmonics
     from jointfem.models.lumped import create_lumped
 
     tol = case["tol"]
@@ -75,8 +75,9 @@ def jointfem_at(case: dict, frf, omegas: np.ndarray) -> np.ndarray:
     the nearest point of its own branch: the curves are compared point by point, free of any
     interpolation between points."""
     from jointfem.continuation.arclength import NewtonOptions, solve_newton
-    from jointfem.frf import compute_scales, newton_system
-    from jointfem.hbm.harmonics import Harmonics
+    from jointfem.hbm.forced import compute_scales
+    from jointfem.hbm.problem import newton_system
+    from jointfem.harmonics import Harmonics
     from jointfem.hbm.residual import HBMResidual
     from jointfem.models.lumped import create_lumped
 

@@ -1,5 +1,5 @@
 """Compiled (numba) kernels of the Jenkins AFT.  Same law and same tangent as the
-NumPy reference march in ``jenkins._march``; see that module for the equations.
+NumPy reference march of tests/reference_jenkins.py; jenkins.py states the equations.
 
 Per pair and sample the local tangents are
 
@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-STICK, SLIP, SEPARATED = 0, 1, 2
+from .law import SEPARATED, SLIP, STICK  # noqa: F401 (compile-time constants of the kernels)
 
 
 @njit(cache=True, inline="always")

@@ -44,18 +44,14 @@ from functools import lru_cache
 
 import numpy as np
 
-from ..hbm.harmonics import Harmonics
-from ._kernels import SEPARATED, SLIP, STICK, aft_kernel, product_table  # noqa: F401 (re-exported)
-
-STATE_NAMES = ("stick", "slip", "separated")
-
-
-class ContactError(RuntimeError):
-    """The slider's periodic steady state could not be found."""
+from ..harmonics import Harmonics
+from ._kernels import aft_kernel, product_table
+from .law import (SEPARATED, SLIP, STATE_NAMES, STICK, ContactError, ContactLaw, ContactResult,  # noqa: F401
+                  check_gaps, loop_energy)
 
 
 @dataclass(frozen=True)
-class JenkinsPairs:
+class JenkinsPairs(ContactLaw):
     """A homogeneous group of ``P`` Jenkins pairs (arrays of shape (P,), SI units)."""
 
     kt: np.ndarray  # tangential stiffness, N/m
@@ -64,6 +60,8 @@ class JenkinsPairs:
     N0: np.ndarray  # normal preload, N (compressive positive)
     num_tangential: int = 1
     has_normal: bool = False
+
+    name = "jenkins"
 
     def __post_init__(self):
         for name in ("kt", "kn", "mu", "N0"):
@@ -103,51 +101,55 @@ class JenkinsPairs:
             k[:, -1] = self.kn
         return k
 
+    def aft(self, G: np.ndarray, harmonics: Harmonics, *, jacobian: bool = True) -> ContactResult:
+        return compute_aft(self, G, harmonics, jacobian=jacobian)
 
-@dataclass
-class ContactResult:
-    """AFT output for one group.
+    def subset(self, index: np.ndarray) -> "JenkinsPairs":
+        return JenkinsPairs(kt=self.kt[index], kn=self.kn[index], mu=self.mu[index], N0=self.N0[index],
+                            num_tangential=self.num_tangential, has_normal=self.has_normal)
 
-    F: force coefficients, shape (num_hc, P, m), N (total force, preload included).
-    J: dF/dG, shape (P, num_hc, m, num_hc, m) ([p, h, a, h', b]), N/m; None if not asked.
-    f_t, g_t: force and gap samples over the steady period, shape (N, P, m).
-    state_t: STICK/SLIP/SEPARATED per sample and pair, shape (N, P), int8.
-    w_start: steady slider state at tau = 0, shape (P, num_tangential).
-    """
+    def linear_breaks(self, g_t: np.ndarray, *, tol: float) -> np.ndarray:
+        """Components whose force, were they stuck at the unloaded position (the linear spring),
+        would break the law at some sample: |t| > mu N (the tangential components) or N < 0 (a
+        separation flags the whole pair)."""
+        P, m, nt = self.num_pairs, self.num_comp, self.num_tangential
+        N = self.N0[None, :] + (self.kn[None, :] * g_t[:, :, -1] if self.has_normal else 0.0)
+        sep = (N < -tol * np.maximum(self.N0, 1e-300)).any(axis=0)
+        t = self.kt[None, :] * np.linalg.norm(g_t[:, :, :nt], axis=2)
+        slip = (t > self.mu * np.maximum(N, 0.0) + tol * np.maximum(self.mu * self.N0, 1e-300)).any(axis=0)
+        out = np.zeros((P, m), bool)
+        out[slip | sep, :nt] = True
+        if self.has_normal:
+            out[sep, :] = True
+        return out
 
-    F: np.ndarray
-    J: np.ndarray | None
-    f_t: np.ndarray
-    g_t: np.ndarray
-    state_t: np.ndarray
-    w_start: np.ndarray
+    def busy(self, result: ContactResult) -> np.ndarray:
+        """A pair that slips or separates at some sample keeps its tangential components; one that
+        separates keeps its normal component too."""
+        nt = self.num_tangential
+        slip = np.any(result.state_t == SLIP, axis=0)
+        sep = np.any(result.state_t == SEPARATED, axis=0)
+        out = np.zeros((self.num_pairs, self.num_comp), bool)
+        out[slip | sep, :nt] = True
+        if self.has_normal:
+            out[sep, nt:] = True
+        return out
 
+    def summary(self, f_t: np.ndarray, g_t: np.ndarray) -> np.ndarray:
+        """Per-pair quantities of one steady period, shape (P, 3):
 
-def pair_summary(result: ContactResult, pairs: JenkinsPairs) -> np.ndarray:
-    """Per-pair quantities of one steady period, shape (P, 3):
-
-    0. dissipated energy per cycle, J: the work of the tangential force over the closed loop of the
-       tangential gap, sum over samples of (f_i + f_i+1)/2 . (g_i+1 - g_i) (trapezoid, periodic);
-    1. amplitude of the tangential relative displacement, m: max over the period of
-       |g_t - mean g_t| (the slip plus the elastic stretch of the pair's spring);
-    2. peak normal force over the period, N (N0 when the normal is not a variable).
-    """
-    return _summary(result.f_t, result.g_t, pairs)
-
-
-def linear_pair_summary(g_t: np.ndarray, pairs: JenkinsPairs) -> np.ndarray:
-    """pair_summary of pairs held by their stuck springs, f = f0 + Kc g (g_t: (N, P, m) samples)."""
-    return _summary(pairs.preload[None] + pairs.stiffness[None] * g_t, g_t, pairs)
-
-
-def _summary(f_t: np.ndarray, g_t: np.ndarray, pairs: JenkinsPairs) -> np.ndarray:
-    nt = pairs.num_tangential
-    f, g = f_t[:, :, :nt], g_t[:, :, :nt]
-    f_next, g_next = np.roll(f, -1, axis=0), np.roll(g, -1, axis=0)
-    energy = np.einsum("ipa,ipa->p", 0.5 * (f + f_next), g_next - g)
-    amp = np.linalg.norm(g - g.mean(axis=0), axis=2).max(axis=0)
-    normal = f_t[:, :, nt].max(axis=0) if pairs.has_normal else pairs.N0.copy()
-    return np.column_stack([energy, amp, normal])
+        0. dissipated energy per cycle, J: the work of the tangential force over the closed loop of
+           the tangential gap (contact.law.loop_energy);
+        1. amplitude of the tangential relative displacement, m: max over the period of
+           |g_t - mean g_t| (the slip plus the elastic stretch of the pair's spring);
+        2. peak normal force over the period, N (N0 when the normal is not a variable).
+        """
+        nt = self.num_tangential
+        g = g_t[:, :, :nt]
+        energy = loop_energy(f_t[:, :, :nt], g)
+        amp = np.linalg.norm(g - g.mean(axis=0), axis=2).max(axis=0)
+        normal = f_t[:, :, nt].max(axis=0) if self.has_normal else self.N0.copy()
+        return np.column_stack([energy, amp, normal])
 
 
 @lru_cache(maxsize=16)
@@ -171,10 +173,8 @@ def compute_aft(pairs: JenkinsPairs, G: np.ndarray, harmonics: Harmonics, *, jac
     dF/dG of shape (P, num_hc, m, num_hc, m) when ``jacobian``.
     Raises ContactError if a slider's periodic steady state is not found.
     """
-    G = np.asarray(G, dtype=float)
+    G = check_gaps(pairs, G, harmonics)
     num_hc, P, m = G.shape
-    if num_hc != harmonics.num_hc or P != pairs.num_pairs or m != pairs.num_comp:
-        raise ValueError(f"gap coefficients of shape {G.shape} do not fit {harmonics} and {P} pairs x {pairs.num_comp}")
     g_t = np.ascontiguousarray(harmonics.to_time(G))
     N = harmonics.N
     nt = pairs.num_tangential
@@ -200,6 +200,4 @@ def compute_dissipation(f_t: np.ndarray, g_t: np.ndarray) -> np.ndarray:
 
     f_t, g_t of shape (N, P, m).  Positive for a dissipating element.
     """
-    dg = np.roll(g_t, -1, axis=0) - g_t
-    fm = 0.5 * (f_t + np.roll(f_t, -1, axis=0))
-    return np.einsum("ipa,ipa->p", fm, dg)
+    return loop_energy(f_t, g_t)

@@ -200,7 +200,7 @@ class ContinuationPoint:
 
 
 def _corrector(g, y_p, mu_p, t, opts: NewtonOptions, lam_scale: float = 1.0):
-    """Newton on [R(y, mu); t.(z - z_p)] = 0.  Returns (y, mu, iterations) or raises."""
+    """Newton on [R(y, mu); t.(z - z_p)] = 0.  Returns (y, mu, iterations, achieved max|r|) or raises."""
     z_p = np.append(y_p, mu_p)
 
     def F(z):

@@ -26,17 +26,17 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from ..contact.jenkins import compute_aft
+from ..harmonics import Harmonics
 from ..linalg import Factorized, LinAlgError
 from ..models.structure import Structure
-from .harmonics import Harmonics
-from .residual import Evaluation, KeepsLastEvaluation, contact_pattern
+from .problem import (Evaluation, KeepsLastEvaluation, Layout, PointRecord, Problem, Scales, contact_records,
+                      force_scale)
+from .residual import contact_pattern
 
 
-class CondensedProblem(KeepsLastEvaluation):
+class CondensedProblem(KeepsLastEvaluation, Problem):
     """The HBM problem of a Structure condensed exactly on its contact gaps and outputs."""
 
-    adapt = None
     # S = R^-1 of a receptance whose condition number reaches 1e8 (neighbouring gaps move almost
     # alike) carries a relative round-off of about 1e-9: a Newton tolerance below this floor only
     # adds iterations (10 per point instead of 2 on the 3D lap joint), so compute_frf raises it.
@@ -50,7 +50,6 @@ class CondensedProblem(KeepsLastEvaluation):
                 raise LinAlgError("exact condensation needs L = G (a physical model, not a ROM)")
         self.full = structure
         self.harmonics = harmonics
-        self.num_pairs = structure.num_pairs
         G = sp.vstack([g.gap for g in structure.contacts]).tocsr()
         self.num_gaps = G.shape[0]
         out_names = list(structure.outputs)
@@ -58,27 +57,17 @@ class CondensedProblem(KeepsLastEvaluation):
         Q = sp.csr_matrix((np.ones(len(rows)), (np.arange(len(rows)), rows)), shape=(len(rows), structure.num_dofs))
         self.C = sp.vstack([G, Q]).tocsr()
         self.r = self.C.shape[0]
-        self.size = self.r
         nh = harmonics.num_hc
-        self.num_unknowns = nh * self.r
+        self._num_unknowns = nh * self.r
         self._CT = self.C.T.toarray()
         self._F1 = structure.fc - 1j * structure.fs
         self._ops = None  # (omega, per-harmonic data)
         S0, _, _, _ = self._harmonic(0, 0.0)
         self._S0 = S0.real
-        # the retained coordinates as a light Structure, for the results and the plots
+        # the retained coordinates: every gap component, then the outputs
         names = [f"gap.{i}" for i in range(self.num_gaps)] + out_names
-        z = sp.csr_matrix((self.r, self.r))
-        offset, groups = 0, []
-        for g in structure.contacts:
-            m = g.gap.shape[0]
-            E = sp.csr_matrix((np.ones(m), (np.arange(m), offset + np.arange(m))), shape=(m, self.r))
-            groups.append(type(g)(g.pairs, E, names=g.names, coords=g.coords))
-            offset += m
-        self.structure = Structure(K=sp.csr_matrix(self._S0), M=z, D=z, fc=np.zeros(self.r), fs=np.zeros(self.r),
-                                   contacts=tuple(groups), dof_names=tuple(names),
-                                   outputs={k: self.num_gaps + j for j, k in enumerate(out_names)},
-                                   info=dict(structure.info, method="exact"))
+        self.layout = Layout(self.r, tuple(names), {k: self.num_gaps + j for j, k in enumerate(out_names)},
+                             structure.pair_names, structure.pair_coords)
         # contact Jacobian pattern per group (as in HBMResidual), in the retained coordinates
         self._groups = []
         offset = 0
@@ -91,8 +80,9 @@ class CondensedProblem(KeepsLastEvaluation):
             self._Kc[offset:offset + Pm, offset:offset + Pm] = np.diag(g.pairs.stiffness.ravel())
             offset += Pm
 
-    def force_scale(self) -> float:
-        return float(max(np.abs(np.r_[self.full.fc, self.full.fs]).max(), 1e-300))
+    @property
+    def num_unknowns(self) -> int:
+        return self._num_unknowns
 
     # ---- per-omega operators ------------------------------------------------------------
     def _harmonic(self, k: int, omega: float):
@@ -136,7 +126,7 @@ class CondensedProblem(KeepsLastEvaluation):
         """Real form of a complex operator on (c - i s): [[Sr, Si], [-Si, Sr]]."""
         return np.block([[S.real, S.imag], [-S.imag, S.real]])
 
-    # ---- the problem interface of compute_frf ----------------------------------------
+    # ---- the problem protocol (jointfem.hbm.problem) -------------------------------------
     def _evaluate(self, U, omega, jacobian):
         h, r = self.harmonics, self.r
         nh = h.num_hc
@@ -165,7 +155,7 @@ class CondensedProblem(KeepsLastEvaluation):
         contact = []
         for g, idx, rows_, cols_, f0 in self._groups:
             G = U[idx].reshape(nh, g.pairs.num_pairs, g.pairs.num_comp)
-            res = compute_aft(g.pairs, G, h, jacobian=jacobian)
+            res = g.pairs.aft(G, h, jacobian=jacobian)
             contact.append(res)
             R[idx] += (res.F - f0).ravel()
             if jacobian:
@@ -177,14 +167,15 @@ class CondensedProblem(KeepsLastEvaluation):
         S, _, ylin, _ = self._harmonic(1, omega)
         return np.linalg.solve(S + self._Kc, S @ ylin)
 
-    def linear_solution(self, omega):
+    def initial_guess(self, omega):
+        """The stuck linear response on the retained coordinates."""
         y = self._stuck(omega)
         U = np.zeros(self.num_unknowns)
         U[self.harmonics.cos(1, self.r)] = y.real
         U[self.harmonics.sin(1, self.r)] = -y.imag
         return U
 
-    def scales(self, omega_start, omega_end, num: int = 21):
+    def scales(self, omega_start, omega_end, num: int = 21) -> Scales:
         """Outputs: their largest stuck amplitude over the range.  Gaps: the largest retained
         amplitude, as the penalty ROM scales its internal variables: a gap that barely moves while
         stuck opens or slips by the size of the response, and scaled by its stuck amplitude it
@@ -196,9 +187,8 @@ class CondensedProblem(KeepsLastEvaluation):
             top = 1.0
         X = np.maximum(X, 1e-6 * top)
         X[:self.num_gaps] = top
-        return X
+        return Scales.from_coordinates(X, self.harmonics, force_scale(self.full))
 
-    def states(self, U, omega, contact=None):
-        if contact is None:
-            contact = self.evaluate(U, omega, jacobian=False).contact
-        return np.concatenate([c.state_t for c in contact], axis=1)
+    def record(self, x, omega, evaluation) -> PointRecord:
+        states, summary = contact_records(self.harmonics, [g.pairs for g in self.full.contacts], evaluation.contact)
+        return PointRecord(states, self.r, summary)

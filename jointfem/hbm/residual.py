@@ -9,22 +9,12 @@ penalty ROM applies the force to its internal variables instead).  U has the har
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 import scipy.sparse as sp
 
-from ..contact.jenkins import ContactResult, compute_aft
+from ..harmonics import Harmonics
 from ..models.structure import Structure
-from .harmonics import Harmonics
-
-
-@dataclass
-class Evaluation:
-    R: np.ndarray  # residual, N
-    J: sp.csr_matrix | np.ndarray | None  # dR/dU, N/m (dense for a small dense model)
-    dR_domega: np.ndarray | None  # N s/rad
-    contact: list[ContactResult]
+from .problem import Evaluation, KeepsLastEvaluation
 
 
 def contact_pattern(pairs, nh: int, stride: int, offset: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -36,23 +26,6 @@ def contact_pattern(pairs, nh: int, stride: int, offset: int = 0) -> tuple[np.nd
     f0 = np.zeros((nh, P, m))
     f0[0] = pairs.preload
     return h * stride + offset + p * m + a, h2 * stride + offset + p * m + b, f0
-
-
-class KeepsLastEvaluation:
-    """``evaluate`` returns the last evaluation again for the same (U, omega): the continuation
-    evaluates an accepted point again for its tangent, its contact states and the penalty ROM's
-    active set, and the AFT need not run twice.  Subclasses implement ``_evaluate``."""
-
-    _last = None  # (key, Evaluation)
-
-    def evaluate(self, U: np.ndarray, omega: float, *, jacobian: bool = True) -> Evaluation:
-        key = (float(omega), U.tobytes())
-        last = self._last
-        if last is not None and last[0] == key and (last[1].J is not None or not jacobian):
-            return last[1]
-        ev = self._evaluate(U, omega, jacobian)
-        self._last = (key, ev)
-        return ev
 
 
 class HBMResidual(KeepsLastEvaluation):
@@ -105,7 +78,7 @@ class HBMResidual(KeepsLastEvaluation):
         J = A if jacobian else None
         contact = []
         for (g, B, BT, f0, rows, cols), G in zip(self._groups, self.gaps(U)):
-            res = compute_aft(g.pairs, G, self.harmonics, jacobian=jacobian)
+            res = g.pairs.aft(G, self.harmonics, jacobian=jacobian)
             contact.append(res)
             R = R + BT @ (res.F - f0).ravel()
             if jacobian:

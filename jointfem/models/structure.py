@@ -6,20 +6,21 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
 
-from ..contact.jenkins import JenkinsPairs
+from ..contact.law import ContactLaw
 
 
 @dataclass(frozen=True)
 class ContactGroup:
-    """Jenkins pairs and the gap operator that maps DOFs to their local gaps.
+    """The pairs of one contact law and the gap operator that maps DOFs to their local gaps.
 
-    gap: sparse, shape (P*m, n): row p*m + a is component a (t1, [t2], [n]) of the
-    relative displacement of pair p in its local frame, m.
+    pairs: P pairs of one law (jointfem.contact.law.ContactLaw: Jenkins, unilateral springs, ...).
+    gap: sparse, shape (P*m, n): row p*m + a is component a of the relative displacement of
+    pair p in its local frame (Jenkins: t1, [t2], [n]), m.
     names: a label per pair (for outputs and plots).
     coords: a reference position per pair, shape (P, 3), m (for plots).
     """
 
-    pairs: JenkinsPairs
+    pairs: ContactLaw
     gap: sp.csr_matrix
     names: tuple[str, ...] = ()
     coords: np.ndarray | None = None
@@ -89,6 +90,19 @@ class Structure:
     @property
     def num_pairs(self) -> int:
         return sum(g.pairs.num_pairs for g in self.contacts)
+
+    @property
+    def pair_names(self) -> tuple[str, ...]:
+        """A name per physical pair, in the order of the contact groups (``pair<i>`` where unnamed)."""
+        return tuple(nm for g in self.contacts for nm in (g.names or [f"pair{i}" for i in range(g.pairs.num_pairs)]))
+
+    @property
+    def pair_coords(self) -> np.ndarray | None:
+        """Reference position per pair (num_pairs, 3), m; None unless every group has them."""
+        coords = [g.coords for g in self.contacts]
+        if coords and all(c is not None for c in coords):
+            return np.concatenate(coords)
+        return None
 
     @property
     def K_lin(self) -> sp.csr_matrix:

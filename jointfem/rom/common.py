@@ -1,32 +1,93 @@
-"""What every reduction shares: options, the reduced model, and dispatch by method name."""
+"""What every reduction shares: options, errors, the reduced models and their checks.
+
+As in pyMOR, a reductor (a function of jointfem.rom.reductors.REDUCTORS) takes the full model and
+returns a reduced model; the reduced model knows how to ``reconstruct`` the physical DOFs and
+offers its HBM problem (``create_problem``) to the analyses.
+"""
 from __future__ import annotations
 
-import time
+from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
 
 import numpy as np
+import scipy.linalg as sla
 import scipy.sparse as sp
 
+from .. import defaults
+from ..harmonics import Harmonics
+from ..hbm.condensed import CondensedProblem
+from ..hbm.forced import ForcedProblem
+from ..hbm.problem import Problem
 from ..linalg import eigen
 from ..models.structure import ContactGroup, Structure
-
-METHODS = ("full", "exact", "cb", "rubin", "macneal", "dcb", "jim", "tvd", "penalty")
 
 
 class RomError(ValueError):
     """A reduction cannot be built for this model (names the method and the reason)."""
 
 
+class BasisError(RomError):
+    """A reduction basis failed its postcondition (rank, M-orthonormality)."""
+
+
 @dataclass(frozen=True)
 class RomOptions:
-    modes: int = 20  # vibration modes: global (penalty, tvd) or in total over the substructures (CMS)
-    tvd: int = 0  # POD-compressed trial-vector derivatives (penalty, tvd)
+    modes: int = defaults.ROM_MODES  # vibration modes: global (penalty, tvd) or in total over the substructures (CMS)
+    tvd: int = defaults.ROM_TVD  # POD-compressed trial-vector derivatives (penalty, tvd)
     interface_modes: int | None = None  # JIM: characteristic interface modes (default: half the boundary DOFs)
     release_after: int = 2  # penalty: converged points a pair must stay stuck before it leaves the active set
 
 
+def check_modes(Phi: np.ndarray, M, what: str, *, rtol: float = 1e-6) -> None:
+    """Postcondition of an eigensolve: Phi^T M Phi = I to ``rtol`` (mass-normalised modes)."""
+    G = Phi.T @ (M @ Phi)
+    err = float(np.abs(G - np.eye(G.shape[0])).max()) if G.size else 0.0
+    if not err <= rtol:
+        raise BasisError(f"{what} are not M-orthonormal: max |Phi^T M Phi - I| = {err:.3e} > {rtol:.0e}")
+
+
+def check_basis(T: np.ndarray, Mr: np.ndarray, what: str) -> None:
+    """Postcondition of a Ritz basis T (n, q) with reduced mass Mr = T^T M T: finite, and of full
+    rank in the mass inner product (Mr positive definite: no two vectors move the same mass)."""
+    if not np.all(np.isfinite(T)):
+        raise BasisError(f"{what}: the basis holds a non-finite value")
+    G = 0.5 * (Mr + Mr.T)
+    try:
+        sla.cholesky(G)
+    except np.linalg.LinAlgError:
+        w = np.linalg.eigvalsh(G)
+        raise BasisError(f"{what}: the basis is rank deficient in the mass inner product (T^T M T has eigenvalue "
+                         f"{w[0]:.3e} against {w[-1]:.3e}: dependent vectors)") from None
+
+
+class Reduction(ABC):
+    """What a reductor returns: a model the analyses solve through ``create_problem``, with the
+    offline time and information of the reduction."""
+
+    method: str
+    offline_s: float
+    info: dict
+
+    @abstractmethod
+    def create_problem(self, harmonics: Harmonics) -> Problem:
+        """The HBM problem of this model (jointfem.hbm.problem protocol)."""
+
+    @property
+    @abstractmethod
+    def basis(self) -> np.ndarray | None:
+        """The Ritz basis T (n, q) with u = T z, or None where the unknowns are not Ritz
+        coordinates (the exact condensation keeps only gaps and outputs)."""
+
+    def reconstruct(self, Z: np.ndarray) -> np.ndarray:
+        """Physical DOFs of reduced coordinates Z (..., q): Z T^T, shape (..., n)."""
+        if self.basis is None:
+            raise RomError(f"{self.method}: the unknowns are gaps and outputs, not Ritz coordinates: "
+                           f"the physical DOFs cannot be reconstructed")
+        return np.asarray(Z) @ self.basis.T
+
+
 @dataclass
-class ReducedModel:
+class ReducedModel(Reduction):
     """A Ritz reduction u = T z of a Structure (the penalty ROM adds its own internal variables).
 
     structure: the reduced model itself (a Structure in the coordinates z), which the HBM
@@ -41,8 +102,15 @@ class ReducedModel:
     info: dict = field(default_factory=dict)
 
     @property
+    def basis(self) -> np.ndarray:
+        return self.T
+
+    @property
     def size(self) -> int:
         return self.structure.num_dofs
+
+    def create_problem(self, harmonics: Harmonics) -> Problem:
+        return ForcedProblem(self.structure, harmonics, self.T)
 
     def natural_frequencies(self, num: int) -> np.ndarray:
         """The lowest ``num`` stuck natural frequencies of the ROM, rad/s."""
@@ -61,10 +129,13 @@ def project(structure: Structure, T: np.ndarray, method: str, *, M_override: np.
     def pr(A):
         return sp.csr_matrix(T.T @ (A @ T))
 
+    Mr = pr(structure.M)
+    check_basis(T, Mr.toarray(), f"{method} basis")
+
     contacts = tuple(ContactGroup(g.pairs, sp.csr_matrix(g.gap @ T), names=g.names, coords=g.coords)
                      for g in structure.contacts)
     outputs = {name: T[dof].copy() for name, dof in structure.outputs.items()}
-    M = pr(structure.M) if M_override is None else sp.csr_matrix(M_override)
+    M = Mr if M_override is None else sp.csr_matrix(M_override)
     red = Structure(K=pr(structure.K), M=M, D=pr(structure.D), fc=T.T @ structure.fc, fs=T.T @ structure.fs,
                     contacts=contacts, dof_names=tuple(f"{method}.{i}" for i in range(T.shape[1])),
                     outputs=outputs, info={"kind": f"rom:{method}", "full_dofs": structure.num_dofs})
@@ -72,27 +143,23 @@ def project(structure: Structure, T: np.ndarray, method: str, *, M_override: np.
 
 
 @dataclass
-class ExactModel:
-    """Marker for ``--method exact``: the full model, solved by exact harmonic condensation."""
+class ExactModel(Reduction):
+    """``--method exact``: the full model, solved by exact harmonic condensation on the contact
+    gaps and outputs (jointfem.hbm.condensed): not a truncation, the full model's solution."""
 
     full: Structure
     offline_s: float = 0.0
     info: dict = field(default_factory=dict)
+    method = "exact"
 
+    @property
+    def basis(self) -> None:
+        return None
 
-def build_rom(structure: Structure, method: str, options: RomOptions = RomOptions()):
-    """Build the ROM of ``method`` (one of METHODS but 'full').  Records the offline seconds."""
-    from . import cms, penalty
+    @property
+    def size(self) -> int:
+        """Retained coordinates: every gap component and every output."""
+        return sum(g.gap.shape[0] for g in self.full.contacts) + len(self.full.outputs)
 
-    if method == "exact":  # not a reduction: the exact condensation on the gaps (jointfem.hbm.condensed)
-        return ExactModel(structure)
-    builders = {"cb": cms.craig_bampton, "rubin": cms.rubin, "macneal": cms.macneal, "dcb": cms.dual_craig_bampton,
-                "jim": cms.joint_interface_modes, "tvd": cms.tvd_method, "penalty": penalty.PenaltyROM}
-    if method not in builders:
-        raise RomError(f"unknown reduction method {method!r}; choose one of {', '.join(METHODS[1:])}")
-    if options.modes < 0 or options.tvd < 0:
-        raise RomError(f"{method}: modes = {options.modes} and tvd = {options.tvd} must be >= 0")
-    t0 = time.perf_counter()
-    rom = builders[method](structure, options)
-    rom.offline_s = time.perf_counter() - t0
-    return rom
+    def create_problem(self, harmonics: Harmonics) -> Problem:
+        return CondensedProblem(self.full, harmonics)

@@ -33,13 +33,15 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from ..contact.jenkins import SEPARATED, SLIP, JenkinsPairs, linear_pair_summary, pair_summary
-from ..hbm.harmonics import Harmonics
+from ..continuation.arclength import Adaptive
+from ..harmonics import Harmonics
+from ..hbm.forced import compute_rom_scales
+from ..hbm.problem import Evaluation, Layout, PointRecord, Problem, Scales, force_scale
 from ..hbm.residual import HBMResidual
 from ..linalg import Factorized, LinAlgError, eigen
 from ..models.structure import ContactGroup, Structure
 from .cms import trial_vector_derivatives
-from .common import ReducedModel, RomError, RomOptions
+from .common import ReducedModel, RomError, RomOptions, check_modes
 
 
 @dataclass
@@ -61,6 +63,7 @@ class PenaltyROM(ReducedModel):
         n = structure.num_dofs
         Kl = structure.K_lin
         w2, Phi = eigen(Kl, structure.M, options.modes, what="penalty: stuck structure")
+        check_modes(Phi, structure.M, "penalty: the stuck vibration modes")
         V, sv = trial_vector_derivatives(structure, Phi, w2, options.tvd)
         G = sp.vstack([g.gap for g in structure.contacts]).tocsr()
         kc = np.concatenate([g.pairs.stiffness.ravel() for g in structure.contacts])
@@ -128,10 +131,7 @@ class PenaltyROM(ReducedModel):
             comp = gr.first + rows
             on = act[sel].ravel()
             load[np.flatnonzero(on), self.p_slots[comp[on]]] = 1.0
-            pr = g.pairs
-            sub = JenkinsPairs(kt=pr.kt[sel], kn=pr.kn[sel], mu=pr.mu[sel], N0=pr.N0[sel],
-                               num_tangential=pr.num_tangential, has_normal=pr.has_normal)
-            contacts.append(ContactGroup(sub, sp.csr_matrix(gr.Gr[rows]), names=tuple(np.array(g.names)[sel])
+            contacts.append(ContactGroup(g.pairs.subset(sel), sp.csr_matrix(gr.Gr[rows]), names=tuple(np.array(g.names)[sel])
                                          if g.names else (), load=sp.csr_matrix(load)))
         fs = self.full
         fc, fsin = self.T.T @ fs.fc, self.T.T @ fs.fs
@@ -144,6 +144,9 @@ class PenaltyROM(ReducedModel):
                       info={"kind": "rom:penalty", "active": int(np.count_nonzero(mask))})
         self._cache[key] = s
         return s
+
+    def create_problem(self, harmonics: Harmonics) -> "PenaltyProblem":
+        return PenaltyProblem(self, harmonics)
 
     def natural_frequencies(self, num: int) -> np.ndarray:
         """Stuck natural frequencies (no active component: modes and TVDs only), rad/s."""
@@ -161,14 +164,18 @@ class _Pair:
     comps: np.ndarray
 
 
-class PenaltyProblem:
-    """The online part: HBM of the penalty ROM whose active set follows the branch."""
+class PenaltyProblem(Problem, Adaptive):
+    """The online part: HBM of the penalty ROM whose active set follows the branch (it is its own
+    ``adaptation``: the continuation's before_step/after_converge hooks)."""
 
     def __init__(self, rom: PenaltyROM, harmonics: Harmonics, *, friction_tol: float = 1e-9):
         self.rom, self.harmonics = rom, harmonics
-        self.adapt = self
+        self.adaptation = self
         self.q = rom.K.shape[0]
-        self.num_unknowns = self.q * harmonics.num_hc
+        full = rom.full
+        self.layout = Layout(self.q, tuple(f"penalty.{i}" for i in range(self.q)),
+                             {nm: rom.T[dof].copy() for nm, dof in full.outputs.items()},
+                             full.pair_names, full.pair_coords)
         self.mask = np.zeros(rom.num_comp, bool)
         self.history: list[np.ndarray] = []  # per accepted point: components that slipped/separated/p != 0
         self.friction_tol = friction_tol
@@ -196,11 +203,22 @@ class PenaltyProblem:
             self._hbm[key] = HBMResidual(self.structure, self.harmonics)
         return self._hbm[key]
 
-    def evaluate(self, U, omega, *, jacobian=True):
+    @property
+    def num_unknowns(self) -> int:
+        return self.q * self.harmonics.num_hc
+
+    def evaluate(self, U, omega, *, jacobian=True) -> Evaluation:
         return self.hbm().evaluate(U, omega, jacobian=jacobian)
 
-    def linear_solution(self, omega):
+    def initial_guess(self, omega):
         return self.hbm().linear_solution(omega)
+
+    def record(self, U, omega, evaluation) -> PointRecord:
+        return PointRecord(self.states(U, omega, evaluation.contact), self.size,
+                           self.pair_summary(U, omega, evaluation.contact), active=self.mask.copy())
+
+    def branch_info(self) -> dict:
+        return {"active_set_events": dict(self.events)}
 
     def _gap_time(self, U):
         """Gap samples of every group from the ROM coordinates: list of (N, P, m)."""
@@ -223,12 +241,12 @@ class PenaltyProblem:
         return st
 
     def pair_summary(self, U, omega, contact) -> np.ndarray:
-        """contact.jenkins.pair_summary per physical pair (P, 3): the AFT of the active pairs, the
-        stuck linear springs of the others (which dissipate nothing)."""
-        out = [linear_pair_summary(g_t, gr.group.pairs) for gr, g_t in zip(self.rom.groups, self._gap_time(U))]
+        """ContactLaw.summary per physical pair (P, 3): the AFT of the active pairs, the stuck
+        linear springs of the others (which dissipate nothing)."""
+        out = [gr.group.pairs.linear_summary(g_t) for gr, g_t in zip(self.rom.groups, self._gap_time(U))]
         out = np.concatenate(out) if out else np.zeros((0, 3))
         for res, idx, gr in zip(contact, self._active_pair_index(), self.structure.contacts):
-            out[idx] = pair_summary(res, gr.pairs)
+            out[idx] = gr.pairs.summary(res.f_t, res.g_t)
         return out
 
     def _active_pair_index(self):
@@ -244,38 +262,23 @@ class PenaltyProblem:
 
     # --- the active set ---------------------------------------------------------------------
     def _linear_breaks(self, U) -> np.ndarray:
-        """Components whose force, were they stuck at the unloaded position (p = 0, the linear
-        spring), would break the law at some sample: |t| > mu N (tangential) or N < 0 (a
-        separation flags the whole pair)."""
+        """Components whose stuck linear force (p = 0) would break their law at some sample
+        (ContactLaw.linear_breaks)."""
         bad = np.zeros(self.rom.num_comp, bool)
         for gr, g_t in zip(self.rom.groups, self._gap_time(U)):
             pr = gr.group.pairs
-            P, m, nt = pr.num_pairs, pr.num_comp, pr.num_tangential
-            N = pr.N0[None, :] + (pr.kn[None, :] * g_t[:, :, -1] if pr.has_normal else 0.0)
-            sep = (N < -self.friction_tol * np.maximum(pr.N0, 1e-300)).any(axis=0)
-            t = pr.kt[None, :] * np.linalg.norm(g_t[:, :, :nt], axis=2)
-            slip = (t > pr.mu * np.maximum(N, 0.0) + self.friction_tol * np.maximum(pr.mu * pr.N0, 1e-300)).any(axis=0)
-            new = np.zeros((P, m), bool)
-            new[slip | sep, :nt] = True
-            if pr.has_normal:
-                new[sep, :] = True
-            bad[gr.first:gr.first + P * m] = new.ravel()
+            bad[gr.first:gr.first + pr.num_pairs * pr.num_comp] = pr.linear_breaks(g_t, tol=self.friction_tol).ravel()
         return bad
 
     def _busy(self, U, omega, breaks: np.ndarray) -> np.ndarray:
-        """Components that must stay active at a converged point: slip or separation in the AFT of
-        active pairs, or a stuck state the linear spring could not hold (a shakedown offset).
-        ``breaks``: _linear_breaks(U)."""
+        """Components that must stay active at a converged point: away from the linear law in the
+        AFT of the active pairs (ContactLaw.busy: Jenkins slip or separation), or a stuck state the
+        linear spring could not hold (a shakedown offset).  ``breaks``: _linear_breaks(U)."""
         busy = np.zeros(self.rom.num_comp, bool)
-        st = self.states(U, omega)
-        for k, pr in enumerate(self.pairs):
-            nt = self.rom.groups[pr.group].group.pairs.num_tangential
-            slip = np.any(st[:, k] == SLIP)
-            sep = np.any(st[:, k] == SEPARATED)
-            if slip or sep:
-                busy[pr.comps[:nt]] = True
-            if sep and pr.comps.size > nt:
-                busy[pr.comps[nt:]] = True
+        contact = self.evaluate(U, omega, jacobian=False).contact
+        for res, idx, g in zip(contact, self._active_pair_index(), self.structure.contacts):
+            comps = np.concatenate([self.pairs[k].comps for k in idx])
+            busy[comps] = g.pairs.busy(res).ravel()
         # releasing a component pins p = 0: only where the linear spring holds the law
         return busy | (breaks & self.mask)
 
@@ -310,9 +313,9 @@ class PenaltyProblem:
         U[:, self.rom.p_slots[released]] = 0.0
         return U.ravel()
 
-    def scales(self, omega_start, omega_end):
-        """x scale per ROM coordinate (frf.compute_rom_scales on the stuck ROM)."""
-        from ..frf import compute_rom_scales
-
-        return compute_rom_scales(self.rom.structure_for(np.zeros(self.rom.num_comp, bool)), self.rom.T,
-                                  omega_start, omega_end, displacements=self.rom.p_slots)
+    def scales(self, omega_start, omega_end) -> Scales:
+        """x scale per ROM coordinate (hbm.forced.compute_rom_scales on the stuck ROM); the
+        residual's, the largest force on the stuck ROM's coordinates."""
+        stuck = self.rom.structure_for(np.zeros(self.rom.num_comp, bool))
+        per = compute_rom_scales(stuck, self.rom.T, omega_start, omega_end, displacements=self.rom.p_slots)
+        return Scales.from_coordinates(per, self.harmonics, force_scale(stuck))

@@ -11,12 +11,13 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ..contact.jenkins import ContactError
+from ..contact.law import ContactError
 from ..continuation.arclength import ContinuationError, ConvergenceError
 from ..linalg import eigen
 from ..models.structure import Structure
 from ..results import FrequencyResponse
-from .common import METHODS, RomError, RomOptions, build_rom
+from ..rom import METHODS, RomError, RomOptions, build_rom
+from .frf import compute_frf
 
 
 @dataclass(frozen=True)
@@ -138,8 +139,6 @@ def compare(structure: Structure, specs: list[MethodSpec], sweep, *, output: str
     The curve error measures the ROM's points against the polyline through the reference's; a
     smaller ``reference_ds_max`` makes that polyline dense where the sweep's own steps would leave
     chords as long as the errors to be measured."""
-    from ..frf import compute_frf
-
     if reference not in ("full", "exact"):
         raise RomError(f"--reference: {reference!r}: choose full or exact")
     ref_sweep = sweep if reference_ds_max is None else replace(

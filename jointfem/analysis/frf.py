@@ -1,0 +1,105 @@
+"""The nonlinear frequency response: arclength continuation in omega of any HBM problem."""
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass, field, replace
+from typing import Callable
+
+import numpy as np
+
+from ..continuation.arclength import ContinuationOptions, ContinuationPoint, continue_branch
+from ..harmonics import Harmonics
+from ..hbm.forced import ForcedProblem
+from ..hbm.problem import Problem, newton_system
+from ..models.structure import Structure
+from ..results import FrequencyResponse
+from ..rom.common import Reduction
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class SweepOptions:
+    omega_start: float  # rad/s
+    omega_end: float  # rad/s (smaller than omega_start for a downward sweep)
+    harmonics: Harmonics = Harmonics(5, 256)
+    continuation: ContinuationOptions = field(default_factory=ContinuationOptions)
+
+
+def create_problem(model: Structure | Reduction, harmonics: Harmonics) -> Problem:
+    """The forced-response problem of a physical Structure (full order) or of a reduced model
+    (its own ``create_problem``: a Galerkin ROM, the penalty ROM, the exact condensation)."""
+    if isinstance(model, Structure):
+        return ForcedProblem(model, harmonics)
+    if isinstance(model, Reduction):
+        return model.create_problem(harmonics)
+    raise TypeError(f"compute_frf: expected a Structure or a reduced model, got {type(model).__name__}")
+
+
+def compute_frf(model: Structure | Reduction, options: SweepOptions, *,
+                callback: Callable[[ContinuationPoint], None] | None = None) -> FrequencyResponse:
+    """Nonlinear FRF from the stuck linear solution at omega_start.
+
+    ``model``: a Structure (full order), or what jointfem.rom.build_rom returns (a Galerkin ROM:
+    CMS or tvd; the penalty ROM; the exact condensation on the contact gaps).
+    """
+    h = options.harmonics
+    t0 = time.perf_counter()
+    problem = create_problem(model, h)
+    nh = h.num_hc
+    q = problem.num_unknowns // nh
+    scales = problem.scales(options.omega_start, options.omega_end)
+    lam_scale = abs(options.omega_end - options.omega_start)
+    t_setup = time.perf_counter() - t0
+
+    def record(U, omega):
+        return problem.record(U, omega, problem.evaluate(U, omega, jacobian=False))
+
+    # a frequency response lives at positive omega: a branch that leaves twice the sweep's span
+    # around it has turned back for good (folds inside that margin are followed)
+    lo, hi = sorted((options.omega_start, options.omega_end))
+    cont = options.continuation
+    if cont.newton.tol < problem.tol_floor:
+        log.warning("Newton tolerance %.1e raised to %.1e, the round-off floor of this method", cont.newton.tol,
+                    problem.tol_floor)
+        cont = replace(cont, newton=replace(cont.newton, tol=problem.tol_floor))
+    if cont.lam_bounds is None:
+        cont = replace(cont, lam_bounds=(max(lo - (hi - lo), 0.0), hi + (hi - lo)))
+    if cont.max_rel_change is None:
+        # a forced response never passes through zero: a step that flips its sign went through an
+        # unbounded (undamped) resonance or onto another branch, and is refused however short
+        cont = replace(cont, max_rel_change=1.0)
+    U0 = problem.initial_guess(options.omega_start)
+    t1 = time.perf_counter()
+    points = continue_branch(newton_system(problem), U0, options.omega_start, options.omega_end, x_scale=scales.x,
+                             lam_scale=lam_scale, r_scale=scales.r, options=cont,
+                             callback=callback, extra=record, adapt=problem.adaptation)
+    t_online = time.perf_counter() - t1
+    records = [p.extra for p in points]
+    layout = problem.layout
+    info = {"time_setup_s": t_setup, "time_online_s": t_online, "num_unknowns": problem.num_unknowns,
+            "newton_tol": cont.newton.tol,
+            # achieved max|R| / max|F| per point: below the Newton tol, or below kink_tol where a
+            # root on a kink of the sampled law stalled Newton (docs/theory.md)
+            "arrays": {"residual": np.array([p.residual for p in points]),
+                       "rom_size": np.array([r.size for r in records]),
+                       # per point and pair: dissipated energy per cycle (J), tangential relative
+                       # displacement amplitude (m), peak normal force (N); ContactLaw.summary
+                       "pair_energy_J": np.array([r.pair_summary[:, 0] for r in records]),
+                       "pair_tangential_amp_m": np.array([r.pair_summary[:, 1] for r in records]),
+                       "pair_peak_normal_N": np.array([r.pair_summary[:, 2] for r in records])}}
+    if layout.pair_coords is not None:
+        info["pair_coords"] = layout.pair_coords
+    info.update(problem.branch_info())
+    if all(r.active is not None for r in records):
+        # active internal variables per point (penalty ROM), in the order of the contact components
+        info["arrays"]["active"] = np.array([r.active for r in records])
+    return FrequencyResponse(
+        omega=np.array([p.lam for p in points]),
+        U=np.array([p.x for p in points]),
+        iterations=np.array([p.iterations for p in points]),
+        states=np.array([r.states for r in records], dtype=np.int8),
+        harmonics=h, num_dofs=q, outputs=dict(layout.outputs), dof_names=layout.dof_names,
+        pair_names=layout.pair_names, info=info,
+    )

@@ -1,0 +1,177 @@
+"""The library layer: what the command line, the demos and the benchmarks call.
+
+``solve_scene`` builds a scene's model (and its ROM) and computes its FRF; ``write_frf`` writes a
+solved scene's result folder; ``compare_scene`` runs and writes a ROM comparison.  cli.py only
+parses arguments and prints.
+"""
+from __future__ import annotations
+
+import dataclasses
+import logging
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .analysis.frf import SweepOptions, compute_frf
+from .continuation.arclength import ContinuationOptions, NewtonOptions
+from .defaults import default_samples
+from .harmonics import Harmonics
+from .models.structure import Structure
+from .results import FrequencyResponse, atomic_write
+from .rom import RomOptions, build_rom
+from .rom.common import Reduction
+from .scene import Scene, SceneError, check_solvable, create_structure
+
+log = logging.getLogger("jointfem")
+
+
+def override_harmonics(scene: Scene, harmonics: int | None = None, samples: int | None = None) -> Scene:
+    """The scene with H and N replaced (None: keep the scene's), re-validated with the scene's own
+    rules; N follows defaults.default_samples when H changes and the scene's N no longer fits."""
+    s = scene.solver
+    H = harmonics if harmonics is not None else s.harmonics
+    N = samples if samples is not None else (s.samples if s.samples >= 2 * H + 1 else default_samples(H))
+    if H < 1:
+        raise SceneError("--harmonics", "harmonics", H, "must be an integer >= 1")
+    if N < 2 * H + 1:
+        raise SceneError("--samples", "samples", N, f"must be >= 2*harmonics+1 = {2 * H + 1}")
+    return dataclasses.replace(scene, solver=dataclasses.replace(s, harmonics=H, samples=N))
+
+
+def sweep_options(scene: Scene) -> SweepOptions:
+    """The scene's [solver] table as the FRF's options."""
+    s = scene.solver
+    return SweepOptions(
+        omega_start=s.omega_start, omega_end=s.omega_end, harmonics=Harmonics(s.harmonics, s.samples),
+        continuation=ContinuationOptions(ds0=s.ds0, ds_min=s.ds_min, ds_max=s.ds_max, max_points=s.max_points,
+                                         newton=NewtonOptions(tol=s.tol, relaxed_kink_tol=max(s.kink_tol, s.tol))))
+
+
+@dataclass
+class SceneSolution:
+    """A solved scene: the physical model, its FRF, the model-building seconds and the ROM (None
+    at full order)."""
+
+    structure: Structure
+    frf: FrequencyResponse
+    build_s: float
+    rom: Reduction | None
+
+
+def solve_scene(scene: Scene, *, progress: bool = False, method: str = "full",
+                rom_options: RomOptions = RomOptions()) -> SceneSolution:
+    """Build the model of a scene (and its ROM) and compute its FRF."""
+    check_solvable(scene)
+    t0 = time.perf_counter()
+    structure = create_structure(scene)
+    rom = None if method == "full" else build_rom(structure, method, rom_options)
+    t_build = time.perf_counter() - t0
+    s = scene.solver
+    opts = sweep_options(scene)
+    bar = None
+    callback = None
+    if progress:
+        from tqdm import tqdm
+
+        span = abs(s.omega_end - s.omega_start)
+        bar = tqdm(total=round(span, 6), unit="rad/s", desc=f"{scene.name} omega", file=sys.stderr,
+                   bar_format="{desc}: {percentage:3.0f}%|{bar}| {n:.4g}/{total:.4g} rad/s [{elapsed}<{remaining}]"
+                              "{postfix}")
+
+        def callback(point):
+            done = min(abs(point.lam - s.omega_start), span)
+            if done > bar.n:
+                bar.update(done - bar.n)
+            bar.set_postfix_str(f"omega={point.lam:.6g} newton={point.iterations}", refresh=False)
+
+    try:
+        frf = compute_frf(structure if rom is None else rom, opts, callback=callback)
+    finally:
+        if bar is not None:
+            bar.close()
+    return SceneSolution(structure, frf, t_build, rom)
+
+
+def save_shape(structure: Structure, rom: Reduction | None, out: Path) -> None:
+    """shape.npz: node positions and the map from the solved coordinates to the physical DOFs,
+    for the deformed-shape picture (continuum models; not for --method exact, whose unknowns are
+    the gaps and outputs only)."""
+    geom = structure.info.get("geometry")
+    if geom is None or (rom is not None and rom.basis is None):
+        return
+    extra = {} if rom is None else {"recovery": np.asarray(rom.basis)}
+
+    def write(p):
+        with open(p, "wb") as fh:
+            np.savez_compressed(fh, node_coords=geom["node_coords"], dof_node=geom["dof_node"],
+                                dof_comp=geom["dof_comp"], **extra)
+
+    atomic_write(Path(out) / "shape.npz", write)
+
+
+def write_frf(solution: SceneSolution, scene: Scene, out: Path, *, method: str, rom_options: RomOptions,
+              mpi_ranks: int = 1, wall_start: float | None = None, plots: bool = False) -> dict:
+    """Write a solved scene's folder: frf.csv, branch.npz, summary.json, shape.npz (continua),
+    frf.png and, with ``plots``, the contact-state pictures.  Returns the summary written."""
+    from .plots import plot_frf
+    from .results import save_frf
+
+    structure, frf, rom = solution.structure, solution.frf, solution.rom
+    sizes = frf.info["arrays"]["rom_size"]
+    rom_info = {"method": method, "size_min": int(sizes.min()), "size_max": int(sizes.max()),
+                "full_size": structure.num_dofs, "reduction_ratio_max": float(sizes.max() / structure.num_dofs)}
+    if rom is not None:
+        rom_info.update({"offline_s": rom.offline_s, "modes": rom_options.modes, "tvd": rom_options.tvd,
+                         **{k: v for k, v in rom.info.items()}, **frf.info.get("active_set_events", {})})
+    t_end = time.perf_counter()
+    summary = {
+        "scene": str(scene.path), "scene_data": scene.data, "kind": scene.kind, "method": method,
+        "model": {"num_dofs": structure.num_dofs, "num_pairs": structure.num_pairs},
+        "rom": rom_info,
+        "harmonics": scene.solver.harmonics, "samples": scene.solver.samples, "mpi_ranks": mpi_ranks,
+        "model_timings_s": structure.info.get("timings", {}),
+        "num_unknowns": frf.info["num_unknowns"],
+        "omega_start_rad_s": scene.solver.omega_start, "omega_end_rad_s": scene.solver.omega_end,
+        "wall_s": {"build": solution.build_s, "setup": frf.info["time_setup_s"],
+                   "continuation": frf.info["time_online_s"],
+                   "total": t_end - (wall_start if wall_start is not None else t_end)},
+    }
+    summary = save_frf(frf, out, summary=summary)
+    save_shape(structure, rom, out)
+    plot_frf(frf, out / "frf.png", title=f"{scene.name} ({method}, H={scene.solver.harmonics})")
+    if plots and structure.num_pairs:
+        from .viz import plot_folder
+
+        for pic in plot_folder(out):
+            log.info("wrote %s", pic.path)
+    log.info("wrote %s", out)
+    return summary
+
+
+def compare_scene(scene: Scene, methods: str, defaults: RomOptions, *, out: Path, output: str | None = None,
+                  reference: str = "full", progress=None) -> str:
+    """Every ROM of ``methods`` (comma-separated name[:modes[:tvd]]) against the reference on one
+    scene: writes compare.csv, compare.md, compare_frf.png and compare_pareto.png into ``out``, and
+    returns the Markdown."""
+    from .analysis.compare import compare, parse_method, to_markdown
+    from .plots import plot_compare
+    from .results import atomic_write_text, write_table
+
+    specs = [parse_method(m, defaults) for m in methods.split(",") if m.strip()]
+    check_solvable(scene)
+    structure = create_structure(scene)
+    output = output or next(iter(structure.outputs), None)
+    if output not in structure.outputs:
+        raise SceneError(scene.path, "--output", output, f"not an output of the scene ({', '.join(structure.outputs)})")
+    results = compare(structure, specs, sweep_options(scene), output=output, progress=progress, reference=reference)
+    write_table([r.row() for r in results], out / "compare.csv")
+    md = (f"# {scene.name}: ROMs against {'full order' if reference == 'full' else 'the exact condensation'}"
+          f"\n\nScene {scene.path}, output {output}, "
+          f"H = {scene.solver.harmonics}, N = {scene.solver.samples}, full size {structure.num_dofs}.\n\n"
+          + to_markdown(results))
+    atomic_write_text(out / "compare.md", md)
+    plot_compare(results, output, out / "compare_frf.png", out / "compare_pareto.png", title=scene.name)
+    return md

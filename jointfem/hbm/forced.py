@@ -1,0 +1,80 @@
+"""The forced response of a Structure: a physical model, or the Galerkin projection of one (CMS,
+tvd), as a :class:`~jointfem.hbm.problem.Problem` with lam = omega (rad/s)."""
+from __future__ import annotations
+
+import numpy as np
+
+from ..harmonics import Harmonics
+from ..models.structure import Structure
+from .problem import Evaluation, Layout, PointRecord, Problem, Scales, contact_records, force_scale
+from .residual import HBMResidual
+
+
+def compute_scales(structure: Structure, omega_start: float, omega_end: float, *, num: int = 201) -> np.ndarray:
+    """Per-DOF displacement scale: the largest stuck linear amplitude over the range, m.
+
+    DOFs that barely move linearly (rotations, constrained directions) get a floor of
+    1e-6 of the largest, so that every unknown is O(1) in the continuation.
+    """
+    w = np.linspace(min(omega_start, omega_end), max(omega_start, omega_end), num)
+    X = np.abs(structure.linear_response(w)).max(axis=0)
+    top = X.max()
+    if not np.isfinite(top) or top <= 0:
+        top = 1.0
+    return np.maximum(X, 1e-6 * top)
+
+
+def compute_rom_scales(structure: Structure, T: np.ndarray, omega_start: float, omega_end: float, *,
+                       num: int = 101, displacements: np.ndarray | None = None) -> np.ndarray:
+    """Scale per ROM coordinate: its stuck linear amplitude, but at least the amplitude at which
+    its basis vector alone reaches the largest linear displacement of the structure.
+
+    A mode far from the range barely moves linearly, yet a joint that slips or opens excites it
+    to displacements of the size of the response: scaled by its linear amplitude alone, it
+    would dominate the arclength and shrink every step.
+    Coordinates listed in ``displacements`` are displacements themselves (the penalty ROM's
+    internal variables p): their scale is the largest displacement.
+    """
+    w = np.linspace(min(omega_start, omega_end), max(omega_start, omega_end), num)
+    X = np.abs(structure.linear_response(w))  # (num, q)
+    top = np.abs(X @ T.T).max()
+    if not np.isfinite(top) or top <= 0:
+        top = 1.0
+    col = np.abs(T).max(axis=0)
+    zs = np.maximum(X.max(axis=0), top / np.where(col > 0, col, 1.0))
+    if displacements is not None:
+        zs[displacements] = top
+    return zs
+
+
+class ForcedProblem(Problem):
+    """HBM of a Structure under its harmonic force.  ``basis``: the Ritz basis T (n, q) of a
+    Galerkin projection (scales per ROM coordinate), None for a physical model."""
+
+    def __init__(self, structure: Structure, harmonics: Harmonics, basis: np.ndarray | None = None):
+        self.structure, self.harmonics, self.basis = structure, harmonics, basis
+        self.hbm = HBMResidual(structure, harmonics)
+        self.layout = Layout(structure.num_dofs, structure.dof_names, dict(structure.outputs),
+                             structure.pair_names, structure.pair_coords)
+
+    @property
+    def num_unknowns(self) -> int:
+        return self.hbm.num_unknowns
+
+    def evaluate(self, x, lam, *, jacobian=True) -> Evaluation:
+        return self.hbm.evaluate(x, lam, jacobian=jacobian)
+
+    def initial_guess(self, lam):
+        return self.hbm.linear_solution(lam)
+
+    def scales(self, lam_start, lam_end) -> Scales:
+        if self.basis is not None:
+            per = compute_rom_scales(self.structure, self.basis, lam_start, lam_end)
+        else:
+            per = compute_scales(self.structure, lam_start, lam_end)
+        return Scales.from_coordinates(per, self.harmonics, force_scale(self.structure))
+
+    def record(self, x, lam, evaluation) -> PointRecord:
+        states, summary = contact_records(self.harmonics, [g.pairs for g in self.structure.contacts],
+                                          evaluation.contact)
+        return PointRecord(states, self.structure.num_dofs, summary)

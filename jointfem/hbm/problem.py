@@ -1,0 +1,167 @@
+"""The problem protocol: what every solved problem offers the analyses, defined once.
+
+A problem is a residual ``R(x, lam) = 0`` in harmonic coefficients ``x`` and one parameter
+``lam`` (omega in rad/s for a forced response), with everything an analysis needs around it:
+
+* ``num_unknowns``: the length of ``x``, the size of the system Newton solves;
+* ``evaluate(x, lam, *, jacobian)`` -> :class:`Evaluation` (R, dR/dx, dR/dlam, contact results);
+* ``initial_guess(lam)``: where the continuation starts (refined by Newton);
+* ``scales(lam_start, lam_end)`` -> :class:`Scales` (per unknown, and the residual's);
+* ``record(x, lam, evaluation)`` -> :class:`PointRecord`: the named data kept per point;
+* ``layout``: what the coordinates are (:class:`Layout`: names, outputs, pairs), for the results;
+* ``adaptation``: None, or the hooks of a problem whose equations change along the branch
+  (:class:`jointfem.continuation.arclength.Adaptive`; the penalty ROM's active set);
+* ``tol_floor``: a Newton tolerance below which this problem's round-off makes no progress;
+* ``branch_info()``: data of the whole branch (e.g. the active-set events).
+
+Implementations: :class:`jointfem.hbm.forced.ForcedProblem` (a Structure, physical or a Galerkin
+projection), :class:`jointfem.hbm.condensed.CondensedProblem` (exact condensation on the gaps)
+and :class:`jointfem.rom.penalty.PenaltyProblem`.  The analyses (jointfem.analysis) drive any of
+them and never ask an object what it has.
+"""
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+
+from ..contact.law import ContactResult
+from ..continuation.arclength import Adaptive
+from ..harmonics import Harmonics
+
+
+@dataclass
+class Evaluation:
+    """One evaluation of a problem at (x, lam)."""
+
+    R: np.ndarray  # residual, N (the problem's own units)
+    J: sp.csr_matrix | np.ndarray | None  # dR/dx (dense for a small dense model); None if not asked
+    dR_dlam: np.ndarray | None  # dR/dlam (N s/rad for lam = omega); None if not asked
+    contact: list[ContactResult]  # one AFT result per contact group
+
+
+@dataclass
+class PointRecord:
+    """What is kept of one converged point, by name.
+
+    states: (N, num_pairs) int8, the contact state per time sample and physical pair.
+    size: the model's size at the point (for the penalty ROM: modes + TVDs + active components).
+    pair_summary: (num_pairs, 3): dissipated energy per cycle (J), tangential amplitude (m), peak
+    normal force (N), per physical pair (ContactLaw.summary).
+    active: the penalty ROM's active components (num_components,) bool, else None.
+    stability, harmonic_error: room for the largest real part of the Floquet exponents and for the
+    harmonic truncation error estimate (None until an analysis computes them).
+    """
+
+    states: np.ndarray
+    size: int
+    pair_summary: np.ndarray
+    active: np.ndarray | None = None
+    stability: float | None = None
+    harmonic_error: float | None = None
+
+
+@dataclass(frozen=True)
+class Scales:
+    """x: scale per unknown (num_unknowns,); r: residual scale (N).  The continuation works on
+    x / x and R / r, so that one step length means the same on every unknown."""
+
+    x: np.ndarray
+    r: float
+
+    @classmethod
+    def from_coordinates(cls, per_coordinate: np.ndarray, harmonics: Harmonics, r: float) -> "Scales":
+        """The same scale for every harmonic of a coordinate, times sqrt(q): a response of the size
+        of the largest linear one has a scaled norm of about 1."""
+        q = per_coordinate.size
+        return cls(np.tile(per_coordinate, harmonics.num_hc) * np.sqrt(q), r)
+
+
+def force_scale(structure) -> float:
+    """Residual scale of a forced Structure: its largest external force component, N."""
+    return float(max(np.abs(np.concatenate([structure.fc, structure.fs])).max(), 1e-300))
+
+
+@dataclass(frozen=True)
+class Layout:
+    """What the solved coordinates are (per harmonic block), for results and pictures.
+
+    num_coords: coordinates per harmonic block.  outputs: name -> coordinate index, or a recovery
+    row (num_coords,) from the coordinates.  pair_names, pair_coords: the physical pairs (P, 3 in m).
+    """
+
+    num_coords: int
+    dof_names: tuple = ()
+    outputs: dict = field(default_factory=dict)
+    pair_names: tuple = ()
+    pair_coords: np.ndarray | None = None
+
+
+class Problem(ABC):
+    """The protocol (see the module docstring).  Subclasses set ``harmonics`` and ``layout``."""
+
+    harmonics: Harmonics
+    layout: Layout
+    adaptation: Adaptive | None = None
+    tol_floor: float = 0.0
+
+    @property
+    @abstractmethod
+    def num_unknowns(self) -> int:
+        ...
+
+    @abstractmethod
+    def evaluate(self, x: np.ndarray, lam: float, *, jacobian: bool = True) -> Evaluation:
+        ...
+
+    @abstractmethod
+    def initial_guess(self, lam: float) -> np.ndarray:
+        ...
+
+    @abstractmethod
+    def scales(self, lam_start: float, lam_end: float) -> Scales:
+        ...
+
+    @abstractmethod
+    def record(self, x: np.ndarray, lam: float, evaluation: Evaluation) -> PointRecord:
+        ...
+
+    def branch_info(self) -> dict:
+        """Data of the whole branch, for the results' info (none by default)."""
+        return {}
+
+
+def newton_system(problem: Problem):
+    """``(x, lam) -> (R, dR/dx, dR/dlam)`` of a problem: what ``solve_newton`` and the
+    continuation take."""
+    def fun(x, lam):
+        ev = problem.evaluate(x, lam, jacobian=True)
+        return ev.R, ev.J, ev.dR_dlam
+    return fun
+
+
+class KeepsLastEvaluation:
+    """``evaluate`` returns the last evaluation again for the same (x, lam): the continuation
+    evaluates an accepted point again for its tangent, its record and the penalty ROM's active
+    set, and the AFT need not run twice.  Subclasses implement ``_evaluate``."""
+
+    _last = None  # (key, Evaluation)
+
+    def evaluate(self, x: np.ndarray, lam: float, *, jacobian: bool = True) -> Evaluation:
+        key = (float(lam), x.tobytes())
+        last = self._last
+        if last is not None and last[0] == key and (last[1].J is not None or not jacobian):
+            return last[1]
+        ev = self._evaluate(x, lam, jacobian)
+        self._last = (key, ev)
+        return ev
+
+
+def contact_records(harmonics: Harmonics, laws, contact: list[ContactResult]) -> tuple[np.ndarray, np.ndarray]:
+    """States (N, P) and pair summaries (P, 3) of the contact results of groups with ``laws``."""
+    if not contact:
+        return np.zeros((harmonics.N, 0), dtype=np.int8), np.zeros((0, 3))
+    return (np.concatenate([c.state_t for c in contact], axis=1),
+            np.concatenate([law.summary(c.f_t, c.g_t) for c, law in zip(contact, laws)]))

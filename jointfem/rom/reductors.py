@@ -1,0 +1,28 @@
+"""The reductors by name: ``build_rom(structure, method, options)`` returns the reduced model."""
+from __future__ import annotations
+
+import time
+
+from ..models.structure import Structure
+from . import cms, penalty
+from .common import ExactModel, Reduction, RomError, RomOptions
+
+# name -> reductor(structure, options) -> Reduction
+REDUCTORS = {
+    "exact": lambda structure, options: ExactModel(structure),  # the exact condensation (hbm.condensed)
+    "cb": cms.craig_bampton, "rubin": cms.rubin, "macneal": cms.macneal, "dcb": cms.dual_craig_bampton,
+    "jim": cms.joint_interface_modes, "tvd": cms.tvd_method, "penalty": penalty.PenaltyROM,
+}
+METHODS = ("full", *REDUCTORS)  # "full": no reduction
+
+
+def build_rom(structure: Structure, method: str, options: RomOptions = RomOptions()) -> Reduction:
+    """Build the ROM of ``method`` (one of METHODS but 'full').  Records the offline seconds."""
+    if method not in REDUCTORS:
+        raise RomError(f"unknown reduction method {method!r}; choose one of {', '.join(METHODS[1:])}")
+    if method != "exact" and (options.modes < 0 or options.tvd < 0):
+        raise RomError(f"{method}: modes = {options.modes} and tvd = {options.tvd} must be >= 0")
+    t0 = time.perf_counter()
+    rom = REDUCTORS[method](structure, options)
+    rom.offline_s = time.perf_counter() - t0
+    return rom
