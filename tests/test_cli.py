@@ -3,13 +3,11 @@ import csv
 import json
 import subprocess
 import sys
-from pathlib import Path
 
 import numpy as np
 
 from jointfem.results import load_branch
-
-ROOT = Path(__file__).resolve().parents[1]
+from conftest import ROOT
 
 
 def test_frf_writes_csv_npz_json_png(tmp_path):
@@ -41,6 +39,27 @@ def test_frf_writes_csv_npz_json_png(tmp_path):
     assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 20_000
 
 
+ROM_GREY = round(0.35 * 255)  # 89: plots.plot_frf draws the ROM-size axis in matplotlib grey "0.35"
+
+
+def _rom_axis_pixels(path) -> int:
+    """Pixels of the ROM-size grey (R = G = B = 89 +- 1) right of frf.png's lower panel, within its
+    height: where a second y axis puts its tick labels and its label.  The panel's frame is found
+    on the image: the right-most long run of black pixels in the lowest 40 % is its right spine."""
+    from PIL import Image
+
+    img = np.asarray(Image.open(path).convert("RGB")).astype(int)
+    v, grey = img[..., 0], np.ptp(img, axis=-1) == 0
+    dark = grey & (v < 60)
+    h = v.shape[0]
+    spine = int(np.flatnonzero(dark[int(0.6 * h):].sum(axis=0) > 0.15 * h).max())
+    col = np.concatenate([[0], dark[:, spine].astype(int), [0]])
+    starts, ends = np.flatnonzero(np.diff(col) == 1), np.flatnonzero(np.diff(col) == -1)
+    top, bottom = max((s, e) for s, e in zip(starts, ends) if e - s > 0.15 * h)  # the lower panel's rows
+    margin = (slice(top + 3, bottom - 3), slice(spine + 3, None))
+    return int((grey[margin] & (np.abs(v[margin] - ROM_GREY) <= 1)).sum())
+
+
 def _run(*args):
     return subprocess.run([sys.executable, "-m", "jointfem", *map(str, args)], capture_output=True, text=True)
 
@@ -59,7 +78,11 @@ def test_frf_with_the_penalty_rom_records_its_size(tmp_path):
     assert set(np.unique(b["rom_size"])) == {1, 2} and b["active"].shape == (b["omega"].size, 1)
     assert b["output_recovery"].shape == (1, 2)
     png_full, png_pen = ((tmp_path / d / "frf.png").read_bytes() for d in ("full", "pen"))
-    assert png_pen[:8] == b"\x89PNG\r\n\x1a\n" and png_pen != png_full  # the ROM size is drawn on a second axis
+    assert png_pen[:8] == b"\x89PNG\r\n\x1a\n"
+    # the ROM size is drawn on a second axis, right of the lower panel, in plots.py's grey "0.35"
+    # (its labels: measured 101 pixels of that grey); the full model has no ROM size and no such axis
+    assert _rom_axis_pixels(tmp_path / "pen" / "frf.png") > 50
+    assert _rom_axis_pixels(tmp_path / "full" / "frf.png") < 5
     full = json.loads((tmp_path / "full" / "summary.json").read_text())["peaks"]["m.x"]
     pen = s["peaks"]["m.x"]
     # the complete basis is the full model: the peaks differ only by where the points fall (< 1e-4)

@@ -11,7 +11,6 @@ the right limit, checked against closed forms, with no NaN or inf in the result.
 from __future__ import annotations
 
 import copy
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -19,8 +18,8 @@ import pytest
 from jointfem.app import sweep_options
 from jointfem.analysis.frf import compute_frf
 from jointfem.scene import create_structure, load_scene, parse_scene
+from conftest import ROOT, linear_amplitude
 
-ROOT = Path(__file__).resolve().parents[1]
 F0 = 0.2  # N, the scene's forcing
 
 
@@ -34,10 +33,6 @@ def _run(force=F0, kt=1.0, mu=1.0, N0=1.0, omega=(0.5, 2.0)):
     amp = frf.amplitude(frf.outputs["m.x"])
     assert np.all(np.isfinite(frf.U)) and np.all(np.isfinite(frf.omega))
     return frf.omega, amp
-
-
-def _linear(omega, k, force=F0, m=1.0, c=0.02):
-    return force / np.abs(k - m * omega**2 + 1j * c * omega)
 
 
 @pytest.mark.parametrize("label,kwargs,k_lin", [
@@ -54,7 +49,7 @@ def test_linear_limits(label, kwargs, k_lin):
     force = kwargs.get("force", F0)
     omega, amp = _run(**kwargs)
     assert omega.min() <= 0.5 + 1e-9 and omega.max() >= 2.0 - 1e-9  # the whole range was swept
-    ref = _linear(omega, k_lin, force)
+    ref = linear_amplitude(omega, k_lin, force, c=0.02)
     assert np.abs(amp / ref - 1).max() < 1e-6, label
 
 

@@ -7,11 +7,9 @@ Systems (m = 1 everywhere):
   ground, N = N0 + kn z; separation when N <= 0.
 * ``rotor``: one mass in the plane (kx = ky = 1: coincident resonances), one 2D Jenkins pair,
   driven by a rotating force: circular gross slip has a closed form.
-* ``sdof``: the SDOF Jenkins oscillator of tests/test_hbm.py (k = kt = Fs = 1).
+* ``sdof``: the SDOF Jenkins oscillator of tests/conftest.py (k = kt = Fs = 1).
 """
 from __future__ import annotations
-
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -23,6 +21,7 @@ from jointfem.hbm.problem import newton_system
 from jointfem.harmonics import Harmonics
 from jointfem.hbm.residual import HBMResidual
 from jointfem.models.lumped import ForceSpec, JenkinsSpec, LinkSpec, LumpedSpec, MassSpec, create_lumped
+from conftest import ROOT, linear_amplitude, sdof
 from reference_timeint import steady_amplitudes
 
 
@@ -36,23 +35,11 @@ def xz(Fx=0.3, Fz=0.8, *, kn=1.0, kz=3.0, N0=1.0, mu=0.5, c=0.05, normal=True):
         forces=(ForceSpec("m.x", Fx), ForceSpec("m.z", Fz)), outputs=("m.x", "m.z"))
 
 
-def sdof(F, *, c=0.02, N0=1.0):
-    return LumpedSpec(
-        masses=(MassSpec("m", 1.0),), springs=(LinkSpec("m.x", "ground", 1.0),),
-        dampers=(LinkSpec("m.x", "ground", c),) if c else (),
-        jenkins=(JenkinsSpec("m", "ground", ("x",), None, kt=1.0, kn=0.0, mu=1.0, N0=N0),),
-        forces=(ForceSpec("m.x", F),), outputs=("m.x",))
-
-
 def sweep(spec, w0, w1, H=7, N=512, **cont):
     frf = compute_frf(create_lumped(spec), SweepOptions(w0, w1, Harmonics(H, N), ContinuationOptions(**cont)))
     assert np.all(np.isfinite(frf.U)) and np.all(np.isfinite(frf.omega))
     assert min(frf.omega[0], frf.omega[-1]) <= min(w0, w1) + 1e-9 and max(frf.omega) >= max(w0, w1) - 1e-9
     return frf
-
-
-def lin(omega, k, F, c):
-    return F / np.abs(k - omega**2 + 1j * c * omega)
 
 
 # ---- normal stiffness from 1e-6 to 1e6 x nominal -------------------------------------------------
@@ -81,8 +68,8 @@ def test_stiff_normal_spring_is_linear_and_well_scaled():
     k_z = 3 + 1e6, whose z amplitude is 1e-6 of x's.  The per-DOF scaling keeps both to 1e-6."""
     frf = sweep(xz(kn=1e6, N0=1e6), 0.8, 2.4)
     assert (frf.states == STICK).all()
-    np.testing.assert_allclose(frf.amplitude(0), lin(frf.omega, 2.0, 0.3, 0.05), rtol=1e-6)
-    np.testing.assert_allclose(frf.amplitude(1), lin(frf.omega, 3.0 + 1e6, 0.8, 0.05), rtol=1e-6)
+    np.testing.assert_allclose(frf.amplitude(0), linear_amplitude(frf.omega, 2.0, 0.3, c=0.05), rtol=1e-6)
+    np.testing.assert_allclose(frf.amplitude(1), linear_amplitude(frf.omega, 3.0 + 1e6, 0.8, c=0.05), rtol=1e-6)
 
 
 # ---- N0 = 0: the joint opens at once --------------------------------------------------------------
@@ -98,7 +85,7 @@ def test_zero_preload_without_normal_axis_is_two_independent_parts():
         forces=(ForceSpec("a.x", 0.2),), outputs=("a.x", "b.x"))
     frf = sweep(spec, 0.5, 2.0)
     assert (frf.states == SEPARATED).all()
-    np.testing.assert_allclose(frf.amplitude(0), lin(frf.omega, 1.0, 0.2, 0.02), rtol=1e-9)
+    np.testing.assert_allclose(frf.amplitude(0), linear_amplitude(frf.omega, 1.0, 0.2, c=0.02), rtol=1e-9)
     assert np.abs(frf.amplitude(1)).max() < 1e-12
 
 
@@ -277,7 +264,7 @@ def test_rigid_body_lumped_dof_is_refused_before_solving(tmp_path):
     are refused the same way: tests/test_continuum.py.)"""
     from jointfem.scene import SceneError, check_solvable, load_scene
 
-    text = (Path(__file__).resolve().parents[1] / "demos" / "sdof_jenkins.toml").read_text()
+    text = (ROOT / "demos" / "sdof_jenkins.toml").read_text()
     text = text.replace('[[spring]]\nbetween = ["m.x", "ground"]\nk = 1.0\n', "")
     f = tmp_path / "free.toml"
     f.write_text(text)

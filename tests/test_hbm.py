@@ -14,6 +14,7 @@ from jointfem.hbm.problem import newton_system
 from jointfem.harmonics import Harmonics
 from jointfem.hbm.residual import HBMResidual
 from jointfem.models.lumped import ForceSpec, JenkinsSpec, LinkSpec, LumpedSpec, MassSpec, create_lumped
+from conftest import linear_amplitude, sdof  # sdof: the m = k = kt = Fs = 1 Jenkins oscillator
 from reference_timeint import steady_amplitudes
 
 
@@ -30,18 +31,12 @@ def test_transform_pair_and_derivative():
     dx = sum(k * (-X[h.block_cos(k), 0] * np.sin(k * tau) + X[h.block_sin(k), 0] * np.cos(k * tau))
              for k in range(1, h.H + 1))
     np.testing.assert_allclose(h.gamma @ (h.derivative_matrix() @ X[:, 0]), dx, atol=1e-12)
-    assert x.shape == (16,)
+    # the synthesis is the series itself, sample by sample (which also fixes x's shape, (N,))
+    series = X[0, 0] + sum(X[h.block_cos(k), 0] * np.cos(k * tau) + X[h.block_sin(k), 0] * np.sin(k * tau)
+                           for k in range(1, h.H + 1))
+    np.testing.assert_allclose(x, series, rtol=0, atol=1e-13)
     with pytest.raises(ValueError, match="2H\\+1"):
         Harmonics(4, 8)
-
-
-def sdof(F, *, c=0.02):
-    """m = k = kt = Fs = 1 Jenkins oscillator."""
-    return LumpedSpec(
-        masses=(MassSpec("m", 1.0),), springs=(LinkSpec("m.x", "ground", 1.0),),
-        dampers=(LinkSpec("m.x", "ground", c),),
-        jenkins=(JenkinsSpec("m", "ground", ("x",), None, kt=1.0, kn=0.0, mu=1.0, N0=1.0),),
-        forces=(ForceSpec("m.x", F),), outputs=("m.x",))
 
 
 def two_dof(Fx=0.3, Fz=0.8):
@@ -82,7 +77,7 @@ def test_linear_limit_equals_closed_form_frf():
     frf = compute_frf(s, SweepOptions(0.5, 2.0, Harmonics(5, 64)))
     assert (frf.states == 0).all()
     w = frf.omega
-    closed = F / np.abs(2.0 - w**2 + 1j * 0.02 * w)
+    closed = linear_amplitude(w, 2.0, F, c=0.02)
     np.testing.assert_allclose(frf.amplitude(0), closed, rtol=1e-8)
     # the other harmonics stay zero
     U = frf.U.reshape(frf.num_points, -1)

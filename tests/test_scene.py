@@ -2,13 +2,12 @@
 before any computation, and the CLI writes nothing."""
 import subprocess
 import sys
-from pathlib import Path
 
 import pytest
 
 from jointfem.scene import SceneError, create_structure, load_scene
+from conftest import ROOT
 
-ROOT = Path(__file__).resolve().parents[1]
 SDOF = (ROOT / "demos" / "sdof_jenkins.toml").read_text()
 BEAM = (ROOT / "demos" / "beam2d.toml").read_text()
 

@@ -13,8 +13,7 @@ import pytest
 from jointfem import viz
 from jointfem.cli import main
 from jointfem.results import OutputError
-
-ROOT = Path(__file__).resolve().parents[1]
+from conftest import ROOT
 
 
 def _png(path: Path) -> np.ndarray:
