@@ -29,6 +29,26 @@ def finish(fig, ax, path: Path, *, title: str = "", legend_size: int = 8) -> Pat
     return Path(path)
 
 
+def plot_branch(ax, x, y, stable, *, label: str, **kw):
+    """A branch as a line, solid where it is stable and dashed where it is not (both where the
+    stability is unknown: solid).  A segment is stable when both its end points are."""
+    if stable is None:
+        return ax.plot(x, y, label=label, **kw)[0]
+    stable = np.asarray(stable, bool)
+    seg = stable[:-1] & stable[1:]
+    on_s, on_u = np.zeros(stable.size, bool), np.zeros(stable.size, bool)
+    on_s[:-1] |= seg
+    on_s[1:] |= seg
+    on_u[:-1] |= ~seg
+    on_u[1:] |= ~seg
+    line = ax.plot(x, np.where(on_s, y, np.nan), label=label, **kw)[0]
+    if on_u.any():
+        kw = dict(kw, color=line.get_color())
+        kw.pop("ls", None)
+        ax.plot(x, np.where(on_u, y, np.nan), ls="--", label=f"{label} (unstable)", **kw)
+    return line
+
+
 def plot_frf(frf: FrequencyResponse, path: Path, *, title: str = "") -> Path:
     """FRF of every output (first-harmonic amplitude and half peak-to-peak, m, against Hz), and
     below it the share of contact pairs sticking, slipping and separated along the branch."""
@@ -39,8 +59,8 @@ def plot_frf(frf: FrequencyResponse, path: Path, *, title: str = "") -> Path:
     ax = axes[0, 0]
     f_hz = frf.omega / (2 * np.pi)
     for name, dof in frf.outputs.items():
-        line, = ax.plot(f_hz, frf.amplitude(dof), label=f"{name}: 1st harmonic")
-        ax.plot(f_hz, frf.half_peak_to_peak(dof), "--", color=line.get_color(), lw=1, label=f"{name}: half peak-to-peak")
+        line = plot_branch(ax, f_hz, frf.amplitude(dof), frf.stable, label=f"{name}: 1st harmonic")
+        ax.plot(f_hz, frf.half_peak_to_peak(dof), ":", color=line.get_color(), lw=1, label=f"{name}: half peak-to-peak")
     ax.set_ylabel("amplitude [m]")
     ax.set_yscale("log")
     ax.grid(True, which="both", alpha=0.3)
@@ -91,8 +111,9 @@ def plot_compare(results, output: str, frf_path: Path, pareto_path: Path, *, tit
         if r.failure:
             continue
         f = r.frf
-        ax.plot(f.omega / (2 * np.pi), f.amplitude(f.outputs[output]), "k-" if i == 0 else "-",
-                lw=2.2 if i == 0 else 1.1, label=f"{r.spec.label} (size {r.size_max})", zorder=1 if i == 0 else 2)
+        plot_branch(ax, f.omega / (2 * np.pi), f.amplitude(f.outputs[output]), f.stable,
+                    label=f"{r.spec.label} (size {r.size_max})", lw=2.2 if i == 0 else 1.1, zorder=1 if i == 0 else 2,
+                    **({"color": "k"} if i == 0 else {}))
     ax.set_xlabel("frequency [Hz]")
     ax.set_ylabel(f"{output}: 1st harmonic amplitude [m]")
     finish(fig, ax, frf_path, title=title, legend_size=7)

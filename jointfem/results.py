@@ -58,8 +58,17 @@ class FrequencyResponse:
         return 0.5 * (u_t.max(axis=0) - u_t.min(axis=0))
 
     def peak(self, name: str) -> tuple[float, float]:
-        """(omega, amplitude) of the largest first-harmonic amplitude of an output, parabola-refined."""
+        """(omega, amplitude) of the largest first-harmonic amplitude of an output: located to the
+        Newton tolerance by the FRF (analysis.peaks) when it did, else parabola-refined."""
+        located = self.info.get("peaks", {}).get(name)
+        if located is not None:
+            return located.omega, located.amplitude
         return parabola_peak(self.omega, self.amplitude(self.outputs[name]))
+
+    @property
+    def stable(self) -> np.ndarray | None:
+        """Stable or not per point (Hill's method, analysis.stability), None where not computed."""
+        return self.info.get("arrays", {}).get("stable")
 
     def state_fractions(self) -> np.ndarray:
         """Fraction of the period in each state, shape (num_points, num_pairs, 3)."""
@@ -154,9 +163,20 @@ def save_frf(frf: FrequencyResponse, out: Path, *, summary: dict) -> dict:
     for name in names:
         w, a = frf.peak(name)
         peaks[name] = {"omega_rad_s": w, "freq_Hz": w / (2 * np.pi), "amp1_m": a}
+        located = frf.info.get("peaks", {}).get(name)
+        if located is not None:  # how it was found: solved between the points, or the range's edge
+            peaks[name].update(located=located.located, edge=located.edge, solves=located.solves,
+                               residual=located.residual, **({"reason": located.reason} if located.reason else {}))
     summary = dict(summary)
     summary.update({"num_points": int(frf.num_points), "newton_iterations_total": int(frf.iterations.sum()),
                     "peaks": peaks})
+    if "stability" in frf.info:
+        stab = {"status": frf.info["stability"]}
+        if frf.stable is not None:
+            stab.update(unstable_points=int((~frf.stable).sum()),
+                        folds=int(frf.info["arrays"]["fold"].sum()),
+                        stability_changes=int(frf.info["arrays"]["stability_change"].sum()))
+        summary["stability"] = stab
     atomic_write(out / "summary.json", lambda p: Path(p).write_text(json.dumps(summary, indent=2, default=_json)))
     return summary
 

@@ -15,6 +15,8 @@ from ..hbm.problem import Problem, newton_system
 from ..models.structure import Structure
 from ..results import FrequencyResponse
 from ..rom.common import Reduction
+from .peaks import locate_peak
+from .stability import is_stable, max_real_part
 
 log = logging.getLogger(__name__)
 
@@ -25,6 +27,9 @@ class SweepOptions:
     omega_end: float  # rad/s (smaller than omega_start for a downward sweep)
     harmonics: Harmonics = Harmonics(5, 256)
     continuation: ContinuationOptions = field(default_factory=ContinuationOptions)
+    locate_peaks: bool = True  # every output's peak solved to the Newton tolerance (analysis.peaks)
+    stability: bool = True  # Floquet exponents of every point by Hill's method (analysis.stability) ...
+    stability_max_unknowns: int = 400  # ... when the problem has at most this many unknowns (a dense eigensolve)
 
 
 def create_problem(model: Structure | Reduction, harmonics: Harmonics) -> Problem:
@@ -53,8 +58,16 @@ def compute_frf(model: Structure | Reduction, options: SweepOptions, *,
     lam_scale = abs(options.omega_end - options.omega_start)
     t_setup = time.perf_counter() - t0
 
+    # Hill's method needs the Jacobian at the point, which the continuation has just evaluated for
+    # the tangent (the problem returns it again from its last evaluation)
+    stability = options.stability and problem.num_unknowns <= options.stability_max_unknowns
+
     def record(U, omega):
-        return problem.record(U, omega, problem.evaluate(U, omega, jacobian=False))
+        ev = problem.evaluate(U, omega, jacobian=stability)
+        rec = problem.record(U, omega, ev)
+        if stability:
+            rec = replace(rec, stability=max_real_part(problem, U, omega, ev))
+        return rec
 
     # a frequency response lives at positive omega: a branch that leaves twice the sweep's span
     # around it has turned back for good (folds inside that margin are followed)
@@ -78,6 +91,13 @@ def compute_frf(model: Structure | Reduction, options: SweepOptions, *,
     t_online = time.perf_counter() - t1
     records = [p.extra for p in points]
     layout = problem.layout
+    peaks = {}
+    if options.locate_peaks:
+        t2 = time.perf_counter()
+        X, lam = np.array([p.x for p in points]), np.array([p.lam for p in points])
+        peaks = {name: locate_peak(problem, X, lam, records, dof, scales=scales, lam_scale=lam_scale,
+                                   newton=cont.newton) for name, dof in layout.outputs.items()}
+        t_online += time.perf_counter() - t2
     info = {"time_setup_s": t_setup, "time_online_s": t_online, "num_unknowns": problem.num_unknowns,
             "newton_tol": cont.newton.tol,
             # achieved max|R| / max|F| per point: below the Newton tol, or below kink_tol where a
@@ -89,6 +109,30 @@ def compute_frf(model: Structure | Reduction, options: SweepOptions, *,
                        "pair_energy_J": np.array([r.pair_summary[:, 0] for r in records]),
                        "pair_tangential_amp_m": np.array([r.pair_summary[:, 1] for r in records]),
                        "pair_peak_normal_N": np.array([r.pair_summary[:, 2] for r in records])}}
+    if peaks:
+        info["peaks"] = peaks
+    omega = np.array([p.lam for p in points])
+    re = np.array([np.nan if r.stability is None else r.stability for r in records])
+    if np.isfinite(re).all():
+        info["stability"] = "computed"
+        stable = np.array([is_stable(r, w) for r, w in zip(re, omega)])
+        info["arrays"]["floquet_max_real"] = re  # 1/s: the largest real part of the Floquet exponents
+        info["arrays"]["stable"] = stable
+        # where the stability changes between two points: a fold (omega turns back) or a bifurcation
+        turn = np.zeros(omega.size, bool)
+        d = np.sign(np.diff(omega))
+        turn[1:-1] = d[1:] * d[:-1] < 0
+        info["arrays"]["fold"] = turn
+        change = np.zeros(omega.size, bool)
+        change[1:] = stable[1:] != stable[:-1]
+        info["arrays"]["stability_change"] = change
+    elif not options.stability:
+        info["stability"] = "not computed (stability = False)"
+    elif not stability:
+        info["stability"] = (f"not computed: {problem.num_unknowns} unknowns > stability_max_unknowns = "
+                             f"{options.stability_max_unknowns} (a dense eigensolve per point)")
+    else:
+        info["stability"] = "not computed: this problem has no Hill operators (the exact condensation)"
     if layout.pair_coords is not None:
         info["pair_coords"] = layout.pair_coords
     info.update(problem.branch_info())
@@ -96,7 +140,7 @@ def compute_frf(model: Structure | Reduction, options: SweepOptions, *,
         # active internal variables per point (penalty ROM), in the order of the contact components
         info["arrays"]["active"] = np.array([r.active for r in records])
     return FrequencyResponse(
-        omega=np.array([p.lam for p in points]),
+        omega=omega,
         U=np.array([p.x for p in points]),
         iterations=np.array([p.iterations for p in points]),
         states=np.array([r.states for r in records], dtype=np.int8),

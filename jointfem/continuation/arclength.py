@@ -54,6 +54,10 @@ class Adaptive:
     def after_converge(self, x, lam) -> bool:  # pragma: no cover - interface
         return False
 
+    def restore(self, state) -> None:  # pragma: no cover - interface
+        """Put the problem back in a state it recorded at a converged point (for solves after the
+        branch, e.g. locating a peak between recorded points)."""
+
 
 @dataclass(frozen=True)
 class NewtonOptions:
@@ -187,6 +191,22 @@ def solve_newton(fun: Callable, x0: np.ndarray, lam: float, *, x_scale, r_scale:
 
     y, it, _ = _damped_newton(F, x0 / x_scale, options, "Newton", lambda z: lam)
     return y * x_scale, it
+
+
+def correct(fun: Callable, x_p: np.ndarray, lam_p: float, direction: tuple[np.ndarray, float], *, x_scale,
+            lam_scale: float, r_scale: float, options: NewtonOptions = NewtonOptions()):
+    """Solve R(x, lam) = 0 on the hyperplane through (x_p, lam_p) normal to ``direction`` = (dx, dlam)
+    (in the scaled variables of the continuation), as the corrector of a step does.
+
+    Returns (x, lam, iterations, achieved max|R|/r_scale); raises ConvergenceError.  This meets
+    the branch where it crosses the hyperplane, whether it is a graph over lam there or folds.
+    """
+    x_scale = np.broadcast_to(np.asarray(x_scale, float), np.shape(x_p))
+    g = _scaled(fun, x_scale, lam_scale, r_scale)
+    t = np.append(direction[0] / x_scale, direction[1] / lam_scale)
+    t = t / np.linalg.norm(t)
+    y, mu, it, res = _corrector(g, x_p / x_scale, lam_p / lam_scale, t, options, lam_scale)
+    return y * x_scale, mu * lam_scale, it, res
 
 
 @dataclass

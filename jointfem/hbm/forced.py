@@ -6,7 +6,7 @@ import numpy as np
 
 from ..harmonics import Harmonics
 from ..models.structure import Structure
-from .problem import Evaluation, Layout, PointRecord, Problem, Scales, contact_records, force_scale
+from .problem import Evaluation, Layout, PointRecord, Problem, Scales, contact_records, count_exponents, force_scale
 from .residual import HBMResidual
 
 
@@ -54,6 +54,7 @@ class ForcedProblem(Problem):
     def __init__(self, structure: Structure, harmonics: Harmonics, basis: np.ndarray | None = None):
         self.structure, self.harmonics, self.basis = structure, harmonics, basis
         self.hbm = HBMResidual(structure, harmonics)
+        self._num_dynamic = None
         self.layout = Layout(structure.num_dofs, structure.dof_names, dict(structure.outputs),
                              structure.pair_names, structure.pair_coords)
 
@@ -73,6 +74,14 @@ class ForcedProblem(Problem):
         else:
             per = compute_scales(self.structure, lam_start, lam_end)
         return Scales.from_coordinates(per, self.harmonics, force_scale(self.structure))
+
+    def hill_operators(self, lam):
+        return self.hbm.hill_operators(lam)
+
+    def num_dynamic(self) -> int:
+        if self._num_dynamic is None:
+            self._num_dynamic = count_exponents(self.structure.M, self.structure.D)
+        return self._num_dynamic
 
     def record(self, x, lam, evaluation) -> PointRecord:
         states, summary = contact_records(self.harmonics, [g.pairs for g in self.structure.contacts],

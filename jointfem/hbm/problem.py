@@ -12,7 +12,9 @@ A problem is a residual ``R(x, lam) = 0`` in harmonic coefficients ``x`` and one
 * ``adaptation``: None, or the hooks of a problem whose equations change along the branch
   (:class:`jointfem.continuation.arclength.Adaptive`; the penalty ROM's active set);
 * ``tol_floor``: a Newton tolerance below which this problem's round-off makes no progress;
-* ``branch_info()``: data of the whole branch (e.g. the active-set events).
+* ``branch_info()``: data of the whole branch (e.g. the active-set events);
+* ``hill_operators(lam)`` and ``num_dynamic()``: what Hill's method needs for the stability of a
+  point (analysis.stability), None where it does not apply.
 
 Implementations: :class:`jointfem.hbm.forced.ForcedProblem` (a Structure, physical or a Galerkin
 projection), :class:`jointfem.hbm.condensed.CondensedProblem` (exact condensation on the gaps)
@@ -132,6 +134,17 @@ class Problem(ABC):
         """Data of the whole branch, for the results' info (none by default)."""
         return {}
 
+    def hill_operators(self, lam: float):
+        """(Delta1, Delta2) with which J + s Delta1 + s^2 Delta2 is the Hill matrix of a Floquet
+        exponent s (analysis.stability), or None where the residual is not polynomial in the time
+        derivative (the exact condensation's dynamic stiffness): then no stability is computed."""
+        return None
+
+    def num_dynamic(self) -> int | None:
+        """The number of Floquet exponents of a point: 2 per coordinate with mass, 1 per massless
+        coordinate with damping (None where hill_operators is None)."""
+        return None
+
 
 def newton_system(problem: Problem):
     """``(x, lam) -> (R, dR/dx, dR/dlam)`` of a problem: what ``solve_newton`` and the
@@ -157,6 +170,24 @@ class KeepsLastEvaluation:
         ev = self._evaluate(x, lam, jacobian)
         self._last = (key, ev)
         return ev
+
+
+def count_exponents(M, D) -> int:
+    """Floquet exponents of M u'' + D u' + ...: two per coordinate with mass (rank M), one per
+    massless direction with damping (rank of D on the null space of M)."""
+    Md = np.asarray(M.toarray() if sp.issparse(M) else M, dtype=float)
+    Dd = np.asarray(D.toarray() if sp.issparse(D) else D, dtype=float)
+    if not Md.size:
+        return 0
+    U, sv, _ = np.linalg.svd(Md)
+    r = int(np.count_nonzero(sv > 1e-12 * sv.max())) if sv.max() > 0 else 0
+    N = U[:, r:]
+    rd = 0
+    if N.shape[1]:
+        Dn = N.T @ Dd @ N
+        sd = np.linalg.svd(Dn, compute_uv=False)
+        rd = int(np.count_nonzero(sd > 1e-12 * max(np.abs(Dd).max(), 1e-300)))
+    return 2 * r + rd
 
 
 def contact_records(harmonics: Harmonics, laws, contact: list[ContactResult]) -> tuple[np.ndarray, np.ndarray]:

@@ -63,6 +63,17 @@ class HBMResidual(KeepsLastEvaluation):
                 B, BT = B.toarray(), BT.toarray()
             self._groups.append((g, B, BT, f0, rows, cols))
 
+    def hill_operators(self, omega: float):
+        """(Delta1, Delta2) of Hill's method: a perturbation e^{s t} v(omega t) of a periodic solution
+        satisfies (J + s Delta1 + s^2 Delta2) v = 0, with Delta1 = I (x) D + 2 omega (nabla (x) M)
+        and Delta2 = I (x) M (J: the HBM Jacobian at the solution; the contact Jacobian is frozen)."""
+        nh = self.harmonics.num_hc
+        eye = sp.identity(nh, format="csr")
+        nab = sp.csr_matrix(self.harmonics.derivative_matrix())
+        d1 = sp.kron(eye, self.structure.D) + 2.0 * omega * sp.kron(nab, self.structure.M)
+        d2 = sp.kron(eye, self.structure.M)
+        return d1.tocsr(), d2.tocsr()
+
     def linear_operator(self, omega: float):
         A = self._A0 + omega * self._A1 + omega**2 * self._A2
         return A if self.dense else A.tocsr()

@@ -36,7 +36,7 @@ import scipy.sparse as sp
 from ..continuation.arclength import Adaptive
 from ..harmonics import Harmonics
 from ..hbm.forced import compute_rom_scales
-from ..hbm.problem import Evaluation, Layout, PointRecord, Problem, Scales, force_scale
+from ..hbm.problem import Evaluation, Layout, PointRecord, Problem, Scales, count_exponents, force_scale
 from ..hbm.residual import HBMResidual
 from ..linalg import Factorized, LinAlgError, eigen
 from ..models.structure import ContactGroup, Structure
@@ -180,6 +180,7 @@ class PenaltyProblem(Problem, Adaptive):
         self.history: list[np.ndarray] = []  # per accepted point: components that slipped/separated/p != 0
         self.friction_tol = friction_tol
         self._hbm: dict[bytes, HBMResidual] = {}
+        self._num_dynamic: dict[bytes, int] = {}
         self.pairs = []
         for gi, gr in enumerate(rom.groups):
             P, m = gr.group.pairs.num_pairs, gr.group.pairs.num_comp
@@ -219,6 +220,20 @@ class PenaltyProblem(Problem, Adaptive):
 
     def branch_info(self) -> dict:
         return {"active_set_events": dict(self.events)}
+
+    def hill_operators(self, omega):
+        return self.hbm().hill_operators(omega)
+
+    def num_dynamic(self) -> int:
+        key = self.mask.tobytes()
+        if key not in self._num_dynamic:
+            s = self.structure  # the ROM of the current active set: its p have no mass
+            self._num_dynamic[key] = count_exponents(s.M, s.D)
+        return self._num_dynamic[key]
+
+    def restore(self, state) -> None:
+        """Adaptive hook: the active set recorded at a point (its PointRecord.active)."""
+        self.mask = np.asarray(state, bool).copy()
 
     def _gap_time(self, U):
         """Gap samples of every group from the ROM coordinates: list of (N, P, m)."""
