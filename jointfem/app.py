@@ -38,13 +38,19 @@ def override_harmonics(scene: Scene, harmonics: int | None = None, samples: int 
         raise SceneError("--harmonics", "harmonics", H, "must be an integer >= 1")
     if N < 2 * H + 1:
         raise SceneError("--samples", "samples", N, f"must be >= 2*harmonics+1 = {2 * H + 1}")
-    return dataclasses.replace(scene, solver=dataclasses.replace(s, harmonics=H, samples=N))
+    auto = s.harmonics_auto and harmonics is None  # --harmonics fixes H
+    return dataclasses.replace(scene, solver=dataclasses.replace(
+        s, harmonics=H, samples=N, harmonics_auto=auto, samples_given=s.samples_given or samples is not None))
 
 
-def sweep_options(scene: Scene) -> SweepOptions:
-    """The scene's [solver] table as the FRF's options."""
+STABILITY = {"auto": None, "on": True, "off": False}  # --stability
+
+
+def sweep_options(scene: Scene, *, stability: str = "auto") -> SweepOptions:
+    """The scene's [solver] table as the FRF's options; ``stability``: auto, on or off."""
     s = scene.solver
     return SweepOptions(
+        stability=STABILITY[stability],
         omega_start=s.omega_start, omega_end=s.omega_end, harmonics=Harmonics(s.harmonics, s.samples),
         continuation=ContinuationOptions(ds0=s.ds0, ds_min=s.ds_min, ds_max=s.ds_max, max_points=s.max_points,
                                          newton=NewtonOptions(tol=s.tol, relaxed_kink_tol=max(s.kink_tol, s.tol))))
@@ -62,15 +68,15 @@ class SceneSolution:
 
 
 def solve_scene(scene: Scene, *, progress: bool = False, method: str = "full",
-                rom_options: RomOptions = RomOptions()) -> SceneSolution:
-    """Build the model of a scene (and its ROM) and compute its FRF."""
+                rom_options: RomOptions = RomOptions(), stability: str = "auto") -> SceneSolution:
+    """Build the model of a scene (and its ROM) and compute its FRF (``stability``: auto, on, off)."""
     check_solvable(scene)
     t0 = time.perf_counter()
     structure = create_structure(scene)
     rom = None if method == "full" else build_rom(structure, method, rom_options)
     t_build = time.perf_counter() - t0
     s = scene.solver
-    opts = sweep_options(scene)
+    opts = sweep_options(scene, stability=stability)
     bar = None
     callback = None
     if progress:
@@ -87,12 +93,43 @@ def solve_scene(scene: Scene, *, progress: bool = False, method: str = "full",
                 bar.update(done - bar.n)
             bar.set_postfix_str(f"omega={point.lam:.6g} newton={point.iterations}", refresh=False)
 
+    model = structure if rom is None else rom
     try:
-        frf = compute_frf(structure if rom is None else rom, opts, callback=callback)
+        if not s.harmonics_auto:
+            frf = compute_frf(model, opts, callback=callback)
+        else:
+            frf = _auto_harmonics(scene, model, opts, callback)
     finally:
         if bar is not None:
             bar.close()
     return SceneSolution(structure, frf, t_build, rom)
+
+
+def _auto_harmonics(scene: Scene, model, opts: SweepOptions, callback) -> FrequencyResponse:
+    """harmonics = "auto": sweep at H = 3, 5, ... until every point's harmonic truncation estimate
+    (analysis.convergence) is at most the scene's harmonic_target, or H reaches harmonics_max.  One
+    H for the whole scene; frf.info["harmonics_auto"] lists every attempt."""
+    s = scene.solver
+    attempts = []
+    H = s.harmonics
+    while True:
+        N = s.samples if s.samples_given else default_samples(H)
+        t0 = time.perf_counter()
+        frf = compute_frf(model, dataclasses.replace(opts, harmonics=Harmonics(H, N)), callback=callback)
+        worst = float(frf.info["arrays"]["harmonic_error"].max())
+        attempts.append({"H": H, "N": N, "max_estimate": worst, "points": int(frf.num_points),
+                         "seconds": time.perf_counter() - t0})
+        log.info("harmonics auto: H = %d, largest truncation estimate %.3g (target %.3g)", H, worst,
+                 s.harmonic_target)
+        if worst <= s.harmonic_target or H + 2 > s.harmonics_max:
+            break
+        H += 2
+    frf.info["harmonics_auto"] = {"target": s.harmonic_target, "chosen_H": H, "reached": worst <= s.harmonic_target,
+                                  "per": "scene", "attempts": attempts}
+    if worst > s.harmonic_target:
+        log.warning("harmonics auto: H = %d (harmonics_max) still has a truncation estimate %.3g > target %.3g",
+                    H, worst, s.harmonic_target)
+    return frf
 
 
 def save_shape(structure: Structure, rom: Reduction | None, out: Path) -> None:
@@ -131,7 +168,8 @@ def write_frf(solution: SceneSolution, scene: Scene, out: Path, *, method: str, 
         "scene": str(scene.path), "scene_data": scene.data, "kind": scene.kind, "method": method,
         "model": {"num_dofs": structure.num_dofs, "num_pairs": structure.num_pairs},
         "rom": rom_info,
-        "harmonics": scene.solver.harmonics, "samples": scene.solver.samples, "mpi_ranks": mpi_ranks,
+        "harmonics": frf.harmonics.H, "samples": frf.harmonics.N, "mpi_ranks": mpi_ranks,
+        **({"harmonics_auto": frf.info["harmonics_auto"]} if "harmonics_auto" in frf.info else {}),
         "model_timings_s": structure.info.get("timings", {}),
         "num_unknowns": frf.info["num_unknowns"],
         "omega_start_rad_s": scene.solver.omega_start, "omega_end_rad_s": scene.solver.omega_end,
@@ -141,7 +179,7 @@ def write_frf(solution: SceneSolution, scene: Scene, out: Path, *, method: str, 
     }
     summary = save_frf(frf, out, summary=summary)
     save_shape(structure, rom, out)
-    plot_frf(frf, out / "frf.png", title=f"{scene.name} ({method}, H={scene.solver.harmonics})")
+    plot_frf(frf, out / "frf.png", title=f"{scene.name} ({method}, H={frf.harmonics.H})")
     if plots and structure.num_pairs:
         from .viz import plot_folder
 
@@ -152,7 +190,7 @@ def write_frf(solution: SceneSolution, scene: Scene, out: Path, *, method: str, 
 
 
 def compare_scene(scene: Scene, methods: str, defaults: RomOptions, *, out: Path, output: str | None = None,
-                  reference: str = "full", progress=None) -> str:
+                  reference: str = "full", progress=None, stability: str = "auto") -> str:
     """Every ROM of ``methods`` (comma-separated name[:modes[:tvd]]) against the reference on one
     scene: writes compare.csv, compare.md, compare_frf.png and compare_pareto.png into ``out``, and
     returns the Markdown."""
@@ -166,7 +204,8 @@ def compare_scene(scene: Scene, methods: str, defaults: RomOptions, *, out: Path
     output = output or next(iter(structure.outputs), None)
     if output not in structure.outputs:
         raise SceneError(scene.path, "--output", output, f"not an output of the scene ({', '.join(structure.outputs)})")
-    results = compare(structure, specs, sweep_options(scene), output=output, progress=progress, reference=reference)
+    results = compare(structure, specs, sweep_options(scene, stability=stability), output=output, progress=progress,
+                      reference=reference)
     write_table([r.row() for r in results], out / "compare.csv")
     md = (f"# {scene.name}: ROMs against {'full order' if reference == 'full' else 'the exact condensation'}"
           f"\n\nScene {scene.path}, output {output}, "

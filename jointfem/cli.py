@@ -34,7 +34,8 @@ def cmd_frf(args) -> int:
     t0 = time.perf_counter()
     root = parallel.is_root()
     options = _rom_options(args)
-    solution = app.solve_scene(scene, progress=not args.quiet and root, method=args.method, rom_options=options)
+    solution = app.solve_scene(scene, progress=not args.quiet and root, method=args.method, rom_options=options,
+                               stability=args.stability)
     if not root:  # every rank solved the same replicated problem; rank 0 writes it once
         return 0
     summary = app.write_frf(solution, scene, out, method=args.method, rom_options=options,
@@ -58,7 +59,7 @@ def cmd_compare(args) -> int:
             print(f"jointfem compare: {label} ...", file=sys.stderr, flush=True)
 
     md = app.compare_scene(scene, args.methods, _rom_options(args), out=out, output=args.output,
-                           reference=args.reference, progress=progress)
+                           reference=args.reference, progress=progress, stability=args.stability)
     if not args.quiet:
         print(md)
         print(f"-> {out}/")
@@ -73,6 +74,12 @@ def cmd_plot(args) -> int:
         for pic in pics:
             print(f"wrote {pic.path}")
     return 0
+
+
+def _stability_arg(p) -> None:
+    p.add_argument("--stability", choices=("auto", "on", "off"), default="auto",
+                   help="Floquet exponents of every point (Hill's method): auto (default) where the problem has at "
+                        "most 160 unknowns, on always (a dense eigensolve per point), off")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -90,6 +97,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help=f"trial-vector derivatives (penalty, tvd; default {defaults.ROM_TVD})")
     f.add_argument("--quiet", action="store_true", help="no progress bar or summary")
     f.add_argument("--plots", action="store_true", help="also the contact-state pictures (as `jointfem plot`)")
+    _stability_arg(f)
     f.set_defaults(func=cmd_frf)
     pp = sub.add_parser("plot", help="contact-state pictures of a result folder (PNG, off-screen)")
     pp.add_argument("folder", help="a folder written by `jointfem frf`")
@@ -114,6 +122,7 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--harmonics", type=int, help="number of harmonics H (overrides the scene)")
     c.add_argument("--samples", type=int, help="AFT time samples N >= 2H+1 (overrides the scene)")
     c.add_argument("--quiet", action="store_true", help="no progress or table on the terminal")
+    _stability_arg(c)
     c.set_defaults(func=cmd_compare)
     return p
 

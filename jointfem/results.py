@@ -170,6 +170,11 @@ def save_frf(frf: FrequencyResponse, out: Path, *, summary: dict) -> dict:
     summary = dict(summary)
     summary.update({"num_points": int(frf.num_points), "newton_iterations_total": int(frf.iterations.sum()),
                     "peaks": peaks})
+    he = frf.info.get("arrays", {}).get("harmonic_error")
+    if he is not None:
+        summary["harmonic_error"] = {"max": float(he.max()), "at_omega_rad_s": float(frf.omega[int(np.argmax(he))]),
+                                     **({"warning": frf.info["harmonic_warning"]} if "harmonic_warning" in frf.info
+                                        else {})}
     if "stability" in frf.info:
         stab = {"status": frf.info["stability"]}
         if frf.stable is not None:

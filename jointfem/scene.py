@@ -40,6 +40,13 @@ class SolverSpec:
     direction: str = "up"  # sweep from omega_min up, or from omega_max down
     harmonics: int = 5
     samples: int = default_samples(5)
+    # harmonics = "auto": H grows from `harmonics` by 2 until every point's truncation estimate
+    # (analysis.convergence) is at most harmonic_target, up to harmonics_max; samples then follow
+    # defaults.default_samples(H) unless the scene gives them
+    harmonics_auto: bool = False
+    harmonic_target: float = 0.05
+    harmonics_max: int = 25
+    samples_given: bool = True
     # the continuation's own defaults (defined once, in jointfem.continuation.arclength)
     ds0: float = ContinuationOptions.ds0
     ds_min: float = ContinuationOptions.ds_min
@@ -177,16 +184,31 @@ def _solver(t: _Table) -> SolverSpec:
     if hi < lo:
         t.fail("omega_range", rng, "reversed frequency range (omega_min > omega_max); use direction = \"down\" "
                                    "to sweep downwards")
-    H = t.integer("harmonics", SolverSpec.harmonics, ge=1)
-    N = t.integer("samples", default_samples(H))
-    if N < 2 * H + 1:
-        t.fail("samples", N, f"must be >= 2*harmonics+1 = {2 * H + 1}")
+    auto = t.has("harmonics") and t.data["harmonics"] == "auto"
+    if auto:
+        t.raw("harmonics")
+        H = 3
+    else:
+        H = t.integer("harmonics", SolverSpec.harmonics, ge=1)
+    target = t.number("harmonic_target", SolverSpec.harmonic_target, gt=0)
+    H_max = t.integer("harmonics_max", SolverSpec.harmonics_max, ge=1)
+    if not auto and (t.has("harmonic_target") or t.has("harmonics_max")):
+        t.fail("harmonic_target" if t.has("harmonic_target") else "harmonics_max",
+               t.data.get("harmonic_target", t.data.get("harmonics_max")), 'only with harmonics = "auto"')
+    if auto and target >= 1:
+        t.fail("harmonic_target", target, "must be < 1 (a share of the contact force)")
+    if auto and H_max < H:
+        t.fail("harmonics_max", H_max, f"must be >= {H}, where harmonics = \"auto\" starts")
+    N = t.integer("samples", default_samples(H_max if auto else H))
+    if N < 2 * (H_max if auto else H) + 1:
+        t.fail("samples", N, f"must be >= 2*{'harmonics_max' if auto else 'harmonics'}+1 = {2 * (H_max if auto else H) + 1}")
     spec = SolverSpec(
         omega_min=lo, omega_max=hi, direction=t.string("direction", "up", choices=("up", "down")),
         harmonics=H, samples=N, ds0=t.number("ds0", SolverSpec.ds0, gt=0),
         ds_min=t.number("ds_min", SolverSpec.ds_min, gt=0), ds_max=t.number("ds_max", SolverSpec.ds_max, gt=0),
         tol=t.number("tol", SolverSpec.tol, gt=0), max_points=t.integer("max_points", SolverSpec.max_points, ge=2),
-        kink_tol=t.number("kink_tol", SolverSpec.kink_tol, gt=0))
+        kink_tol=t.number("kink_tol", SolverSpec.kink_tol, gt=0), harmonics_auto=auto, harmonic_target=target,
+        harmonics_max=H_max, samples_given=t.has("samples"))
     if spec.kink_tol > 1e-3:
         t.fail("kink_tol", spec.kink_tol, "must be <= 1e-3 (a residual of 0.1 % of the force)")
     if not spec.ds_min <= spec.ds0 <= spec.ds_max:

@@ -109,9 +109,12 @@ def test_fold_middle_branch_is_unstable_against_time_integration():
         assert abs(_time_integrated_amplitude(h, frf.U[i], w[i]) / A[i] - 1) > 0.05, (i, w[i])
 
 
-def test_stability_is_skipped_above_the_size_limit():
-    frf = compute_frf(create_lumped(sdof(0.2)), SweepOptions(0.5, 2.0, Harmonics(7, 128), stability_max_unknowns=10))
-    assert frf.info["stability"].startswith("not computed: 15 unknowns")
+def test_stability_is_skipped_above_the_automatic_size_limit():
+    frf = compute_frf(create_lumped(sdof(0.2)), SweepOptions(0.5, 2.0, Harmonics(7, 128), stability_auto_unknowns=10))
+    assert frf.info["stability"].startswith("not computed: 15 unknowns > 10")
+    forced = compute_frf(create_lumped(sdof(0.2)), SweepOptions(0.5, 2.0, Harmonics(7, 128), stability=True,
+                                                                stability_auto_unknowns=10))
+    assert forced.stable is not None and forced.stable.all()
     assert "floquet_max_real" not in frf.info["arrays"] and frf.stable is None  # no NaN written for "unknown"
 
 

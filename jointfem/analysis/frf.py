@@ -15,7 +15,8 @@ from ..hbm.problem import Problem, newton_system
 from ..models.structure import Structure
 from ..results import FrequencyResponse
 from ..rom.common import Reduction
-from .peaks import locate_peak
+from .convergence import top_harmonic_share
+from .peaks import locate_peaks
 from .stability import is_stable, max_real_part
 
 log = logging.getLogger(__name__)
@@ -28,8 +29,14 @@ class SweepOptions:
     harmonics: Harmonics = Harmonics(5, 256)
     continuation: ContinuationOptions = field(default_factory=ContinuationOptions)
     locate_peaks: bool = True  # every output's peak solved to the Newton tolerance (analysis.peaks)
-    stability: bool = True  # Floquet exponents of every point by Hill's method (analysis.stability) ...
-    stability_max_unknowns: int = 400  # ... when the problem has at most this many unknowns (a dense eigensolve)
+    # Floquet exponents of every point by Hill's method (analysis.stability), a dense eigensolve of
+    # twice the unknowns per point: True always, False never, None ("auto") where that is cheap
+    # beside the sweep, up to stability_auto_unknowns unknowns
+    stability: bool | None = None
+    stability_auto_unknowns: int = 160
+    # warn when a point's harmonic truncation estimate (analysis.convergence) passes this: the
+    # first harmonic then changes by about e^2 / 4 when H grows by 2 (SDOF Jenkins, measured)
+    harmonic_tol: float = 0.05
 
 
 def create_problem(model: Structure | Reduction, harmonics: Harmonics) -> Problem:
@@ -60,11 +67,12 @@ def compute_frf(model: Structure | Reduction, options: SweepOptions, *,
 
     # Hill's method needs the Jacobian at the point, which the continuation has just evaluated for
     # the tangent (the problem returns it again from its last evaluation)
-    stability = options.stability and problem.num_unknowns <= options.stability_max_unknowns
+    stability = (options.stability if options.stability is not None
+                 else problem.num_unknowns <= options.stability_auto_unknowns)
 
     def record(U, omega):
         ev = problem.evaluate(U, omega, jacobian=stability)
-        rec = problem.record(U, omega, ev)
+        rec = replace(problem.record(U, omega, ev), harmonic_error=top_harmonic_share(ev.contact, h))
         if stability:
             rec = replace(rec, stability=max_real_part(problem, U, omega, ev))
         return rec
@@ -95,8 +103,8 @@ def compute_frf(model: Structure | Reduction, options: SweepOptions, *,
     if options.locate_peaks:
         t2 = time.perf_counter()
         X, lam = np.array([p.x for p in points]), np.array([p.lam for p in points])
-        peaks = {name: locate_peak(problem, X, lam, records, dof, scales=scales, lam_scale=lam_scale,
-                                   newton=cont.newton) for name, dof in layout.outputs.items()}
+        peaks = locate_peaks(problem, X, lam, np.array([p.residual for p in points]), records, layout.outputs,
+                             scales=scales, lam_scale=lam_scale, newton=cont.newton)
         t_online += time.perf_counter() - t2
     info = {"time_setup_s": t_setup, "time_online_s": t_online, "num_unknowns": problem.num_unknowns,
             "newton_tol": cont.newton.tol,
@@ -111,6 +119,14 @@ def compute_frf(model: Structure | Reduction, options: SweepOptions, *,
                        "pair_peak_normal_N": np.array([r.pair_summary[:, 2] for r in records])}}
     if peaks:
         info["peaks"] = peaks
+    he = np.array([r.harmonic_error for r in records])
+    info["arrays"]["harmonic_error"] = he
+    if he.max() > options.harmonic_tol:
+        k = int(np.argmax(he))
+        info["harmonic_warning"] = (f"harmonic truncation estimate {he[k]:.3g} > {options.harmonic_tol:g} at omega = "
+                                    f"{points[k].lam:.6g} rad/s ({int((he > options.harmonic_tol).sum())} of "
+                                    f"{he.size} points): more harmonics are needed there (H = {h.H})")
+        log.warning(info["harmonic_warning"])
     omega = np.array([p.lam for p in points])
     re = np.array([np.nan if r.stability is None else r.stability for r in records])
     if np.isfinite(re).all():
@@ -126,11 +142,12 @@ def compute_frf(model: Structure | Reduction, options: SweepOptions, *,
         change = np.zeros(omega.size, bool)
         change[1:] = stable[1:] != stable[:-1]
         info["arrays"]["stability_change"] = change
-    elif not options.stability:
-        info["stability"] = "not computed (stability = False)"
+    elif options.stability is False:
+        info["stability"] = "not computed (stability off)"
     elif not stability:
-        info["stability"] = (f"not computed: {problem.num_unknowns} unknowns > stability_max_unknowns = "
-                             f"{options.stability_max_unknowns} (a dense eigensolve per point)")
+        info["stability"] = (f"not computed: {problem.num_unknowns} unknowns > {options.stability_auto_unknowns}, "
+                             f"the automatic limit (a dense eigensolve of twice the unknowns per point; "
+                             f"--stability on computes it)")
     else:
         info["stability"] = "not computed: this problem has no Hill operators (the exact condensation)"
     if layout.pair_coords is not None:

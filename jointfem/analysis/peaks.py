@@ -1,7 +1,7 @@
 """Peaks located to the solver's tolerance, not to the spacing of the points.
 
-The first-harmonic amplitude A of an output is largest at some point i of a branch.  Each
-segment between consecutive points from i-2 to i+2 is parametrised by t in [0, 1]: the branch
+The first-harmonic amplitude A of an output is largest at some point i of a branch.  Each of the
+two segments between points i-1, i and i+1 is parametrised by t in [0, 1]: the branch
 point where it crosses the hyperplane through (1 - t) z_k + t z_k+1 normal to the chord
 z_k+1 - z_k (in the continuation's scaled variables; continuation.correct).  Every evaluation is
 a solved branch point, so the peak's amplitude and frequency are those of a solution, whether or
@@ -22,7 +22,7 @@ reported as such.
 from __future__ import annotations
 
 import logging
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 from scipy.optimize import minimize_scalar
@@ -61,64 +61,97 @@ def output_amplitude(x: np.ndarray, dof, num_hc: int) -> float:
     return float(np.hypot(c, s))
 
 
-def locate_peak(problem: Problem, x: np.ndarray, lam: np.ndarray, records: list[PointRecord], dof, *,
-                scales: Scales, lam_scale: float, newton: NewtonOptions, grid: int = 6,
-                omega_rtol: float = 1e-9) -> Peak:
-    """The peak of the output ``dof`` on a branch of ``problem`` (points x (num_points, n) at lam)."""
+class _Segments:
+    """Branch points between recorded points, solved once and shared by every output: the point
+    where the branch crosses the hyperplane at t along the chord of segment k (k to k+1)."""
+
+    def __init__(self, problem: Problem, x, lam, residual, *, scales: Scales, lam_scale: float,
+                 newton: NewtonOptions):
+        self.problem, self.x, self.lam, self.residual = problem, x, lam, residual
+        self.fun = newton_system(problem)
+        self.kw = dict(x_scale=scales.x, lam_scale=lam_scale, r_scale=scales.r, options=newton)
+        self.cache: dict[tuple[int, float], tuple[np.ndarray, float, float]] = {}
+        self.solves = 0
+
+    def point(self, k: int, t: float) -> tuple[np.ndarray, float, float]:
+        """(x, omega, achieved residual) at t in [0, 1] of segment k."""
+        if t == 0.0:
+            return self.x[k], float(self.lam[k]), float(self.residual[k])
+        if t == 1.0:
+            return self.x[k + 1], float(self.lam[k + 1]), float(self.residual[k + 1])
+        if (k, t) not in self.cache:
+            za, zb = np.append(self.x[k], self.lam[k]), np.append(self.x[k + 1], self.lam[k + 1])
+            chord = zb - za
+            zp = za + t * chord
+            adapt = self.problem.adaptation
+            for _ in range(adapt.max_redo if adapt is not None else 1):
+                xs, ls, _, res = correct(self.fun, zp[:-1], float(zp[-1]), (chord[:-1], float(chord[-1])), **self.kw)
+                self.solves += 1
+                if adapt is None or not adapt.after_converge(xs, ls):
+                    break
+            self.cache[k, t] = (xs, float(ls), float(res))
+        return self.cache[k, t]
+
+
+def locate_peaks(problem: Problem, x: np.ndarray, lam: np.ndarray, residual: np.ndarray, records: list[PointRecord],
+                 outputs: dict, *, scales: Scales, lam_scale: float, newton: NewtonOptions, grid: int = 4,
+                 omega_rtol: float = 1e-8) -> dict[str, Peak]:
+    """The peak of every output (name -> index or recovery row) on a branch of ``problem`` (points
+    x (num_points, n) at lam, with their achieved residuals); the branch points solved between the
+    recorded ones are shared by the outputs."""
+    segments = _Segments(problem, x, lam, residual, scales=scales, lam_scale=lam_scale, newton=newton)
+    peaks = {}
+    for name, dof in outputs.items():
+        before = segments.solves
+        peaks[name] = _locate(segments, records, dof, grid=grid, omega_rtol=omega_rtol)
+        peaks[name] = replace(peaks[name], solves=segments.solves - before)
+    return peaks
+
+
+def _locate(segments: _Segments, records, dof, *, grid: int, omega_rtol: float) -> Peak:
+    problem, x, lam = segments.problem, segments.x, segments.lam
     nh = problem.harmonics.num_hc
     amp = np.array([output_amplitude(xi, dof, nh) for xi in x])
     i = int(np.argmax(amp))
     if i == 0 or i == amp.size - 1:
         return Peak(float(lam[i]), float(amp[i]), located=False, edge=True,
                     reason="largest amplitude at the end of the range: an edge, not a peak")
-    fun = newton_system(problem)
-    adapt = problem.adaptation
-    lo, hi = max(i - 2, 0), min(i + 2, amp.size - 1)
-    if adapt is not None:
-        adapt.restore(np.logical_or.reduce([r.active for r in records[lo:hi + 1]]))
-    solves = 0
-    best = (float(amp[i]), float(lam[i]), 0.0)  # amplitude, omega, residual
+    lo, hi = i - 1, i + 1  # the two segments around the largest point
+    if problem.adaptation is not None:
+        problem.adaptation.restore(np.logical_or.reduce([r.active for r in records[lo:hi + 1]]))
+    best = (float(amp[i]), float(lam[i]), float(segments.residual[i]))  # amplitude, omega, residual
 
     def search(k: int) -> None:
         """Search the segment between points k and k+1."""
-        nonlocal best, solves
-        za, zb = np.append(x[k], lam[k]), np.append(x[k + 1], lam[k + 1])
-        chord = zb - za
-        cache: dict[float, tuple[float, float, float]] = {0.0: (float(amp[k]), float(lam[k]), 0.0),
-                                                          1.0: (float(amp[k + 1]), float(lam[k + 1]), 0.0)}
+        nonlocal best
 
         def f(t: float) -> float:
-            nonlocal solves
-            if t not in cache:
-                zp = za + t * chord
-                for _ in range(adapt.max_redo if adapt is not None else 1):
-                    xs, ls, _, res = correct(fun, zp[:-1], float(zp[-1]), (chord[:-1], float(chord[-1])),
-                                             x_scale=scales.x, lam_scale=lam_scale, r_scale=scales.r, options=newton)
-                    solves += 1
-                    if adapt is None or not adapt.after_converge(xs, ls):
-                        break
-                cache[t] = (output_amplitude(xs, dof, nh), float(ls), float(res))
-            return -cache[t][0]
+            xs, ls, res = segments.point(k, float(t))
+            return -output_amplitude(xs, dof, nh)
+
+        def take(t: float) -> None:
+            nonlocal best
+            xs, ls, res = segments.point(k, t)
+            a = output_amplitude(xs, dof, nh)
+            if a > best[0]:
+                best = (a, ls, res)
 
         ts = np.linspace(0.0, 1.0, grid + 1)
-        A = -np.array([f(float(t)) for t in ts])
-        for a, w, res in cache.values():
-            if a > best[0]:
-                best = (a, w, res)
-        xatol = omega_rtol * abs(lam[k]) / max(abs(chord[-1]), 1e-300)
+        A = -np.array([f(t) for t in ts])
+        for t in ts:
+            take(float(t))
+        xatol = omega_rtol * abs(lam[k]) / max(abs(lam[k + 1] - lam[k]), 1e-300)
         for j in sorted(range(1, grid), key=lambda j: -A[j]):
             reach = A[j] + max(abs(A[j] - A[j - 1]), abs(A[j + 1] - A[j]))
-            if A[j] >= A[j - 1] and A[j] >= A[j + 1] and reach > best[0]:  # a local maximum that may win
+            if A[j] >= A[j - 1] and A[j] >= A[j + 1] and (reach > best[0] or A[j] == best[0]):  # may win
                 r = minimize_scalar(f, bounds=(float(ts[j - 1]), float(ts[j + 1])), method="bounded",
                                     options={"xatol": min(xatol, 1e-3)})
-                a, w, res = cache[float(r.x)] if float(r.x) in cache else (-r.fun, best[1], best[2])
-                if a > best[0]:
-                    best = (a, w, res)
+                take(float(r.x))
 
     try:
         for k in range(lo, hi):
             search(k)
     except (ConvergenceError, ContinuationError, np.linalg.LinAlgError, RuntimeError) as exc:
         log.warning("peak not located between omega = %.9g and %.9g: %s", lam[lo], lam[hi], exc)
-        return Peak(float(lam[i]), float(amp[i]), located=False, solves=solves, reason=str(exc))
-    return Peak(best[1], best[0], located=True, solves=solves, residual=best[2])
+        return Peak(float(lam[i]), float(amp[i]), located=False, reason=str(exc))
+    return Peak(best[1], best[0], located=True, residual=best[2])

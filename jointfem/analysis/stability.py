@@ -26,14 +26,25 @@ STABILITY_RTOL = 1e-7  # stable when max Re s <= STABILITY_RTOL * omega (Hill's 
 
 
 def floquet_exponents(J, d1, d2, num: int) -> np.ndarray:
-    """The ``num`` Floquet exponents (1/s) of Hill's problem (J + s d1 + s^2 d2) v = 0."""
-    dense = [np.asarray(a.toarray() if sp.issparse(a) else a, dtype=float) for a in (J, d1, d2)]
-    J, d1, d2 = dense
+    """The ``num`` Floquet exponents (1/s) of Hill's problem (J + s d1 + s^2 d2) v = 0.
+
+    Unknowns on which neither d1 nor d2 acts (the penalty ROM's internal variables, which carry
+    neither mass nor damping) only give infinite eigenvalues: they are condensed out statically
+    first (Schur complement of J), which leaves the same finite exponents.  With the remaining d2
+    invertible the first-order form is a standard eigenproblem, else a generalised one."""
+    J, d1, d2 = (np.asarray(a.toarray() if sp.issparse(a) else a, dtype=float) for a in (J, d1, d2))
+    static = ~((d1 != 0).any(axis=0) | (d1 != 0).any(axis=1) | (d2 != 0).any(axis=0) | (d2 != 0).any(axis=1))
+    if static.any():
+        d, st = np.flatnonzero(~static), np.flatnonzero(static)
+        J = J[np.ix_(d, d)] - J[np.ix_(d, st)] @ np.linalg.solve(J[np.ix_(st, st)], J[np.ix_(st, d)])
+        d1, d2 = d1[np.ix_(d, d)], d2[np.ix_(d, d)]
     n = J.shape[0]
     I, Z = np.eye(n), np.zeros((n, n))
-    A = np.block([[Z, I], [-J, -d1]])
-    B = np.block([[I, Z], [Z, d2]])
-    s = sla.eigvals(A, B)
+    try:  # d2 = I (x) M: symmetric, and positive definite once the static unknowns are out
+        c = sla.cho_factor(d2)
+        s = np.linalg.eigvals(np.block([[Z, I], [-sla.cho_solve(c, J), -sla.cho_solve(c, d1)]]))
+    except np.linalg.LinAlgError:  # a massless but damped coordinate: the generalised problem
+        s = sla.eigvals(np.block([[Z, I], [-J, -d1]]), np.block([[I, Z], [Z, d2]]))
     s = s[np.isfinite(s)]
     return s[np.argsort(np.abs(s.imag), kind="stable")][:num]
 

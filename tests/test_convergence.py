@@ -1,0 +1,120 @@
+"""The harmonic truncation estimate per point (jointfem.analysis.convergence) against what it
+estimates: the change of the response when H grows by two."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from conftest import sdof
+from jointfem.analysis.convergence import top_harmonic_share
+from jointfem.analysis.frf import SweepOptions, compute_frf, create_problem
+from jointfem.continuation.arclength import NewtonOptions, solve_newton
+from jointfem.harmonics import Harmonics
+from jointfem.hbm.problem import newton_system
+from jointfem.models.lumped import create_lumped
+
+
+def _solve(structure, H, omega):
+    h = Harmonics(H, 1024)
+    pb = create_problem(structure, h)
+    sc = pb.scales(0.5, 2.0)
+    x, _ = solve_newton(newton_system(pb), pb.initial_guess(omega), omega, x_scale=sc.x, r_scale=sc.r,
+                        options=NewtonOptions(tol=1e-12))
+    return float(np.hypot(x[1], x[2])), top_harmonic_share(pb.evaluate(x, omega, jacobian=False).contact, h)
+
+
+def test_estimate_bounds_the_change_when_h_grows_by_two():
+    """SDOF Jenkins at 1.3 rad/s, F = 0.5 (slipping): the estimate falls with H (0.14 at H = 3 to
+    0.0063 at H = 11, measured), and the first harmonic changes by less than it when H grows by two
+    (measured: about e^2 / 4).  Stuck (F = 0.2 at 1.3 rad/s): the estimate is zero to round-off."""
+    s = create_lumped(sdof(0.5))
+    prev = None
+    for H in (3, 5, 7, 9, 11):
+        a, e = _solve(s, H, 1.3)
+        a2, _ = _solve(s, H + 2, 1.3)
+        assert abs(a2 / a - 1) < e, (H, a, a2, e)
+        assert abs(a2 / a - 1) > 1e-3 * e**2, (H, a, a2, e)  # not vacuous: the change is of order e^2
+        if prev is not None:
+            assert e < prev
+        prev = e
+    assert _solve(create_lumped(sdof(0.2)), 7, 1.3)[1] < 1e-12
+
+
+def test_branch_records_the_estimate_and_warns(caplog):
+    frf = compute_frf(create_lumped(sdof(0.5)), SweepOptions(0.5, 2.0, Harmonics(3, 256), harmonic_tol=0.05))
+    he = frf.info["arrays"]["harmonic_error"]
+    stuck = (frf.states == 0).all(axis=(1, 2))
+    assert he[stuck].max() < 1e-12 and he[~stuck].max() > 0.05
+    assert "more harmonics are needed" in frf.info["harmonic_warning"]
+    assert any("harmonic truncation estimate" in r.message for r in caplog.records)
+    quiet = compute_frf(create_lumped(sdof(0.5)), SweepOptions(0.5, 2.0, Harmonics(3, 256), harmonic_tol=1.0))
+    assert "harmonic_warning" not in quiet.info
+
+
+SCENE = """
+kind = "lumped"
+[solver]
+omega_range = [0.5, 2.0]
+{solver}
+[[mass]]
+name = "m"
+m = 1.0
+dofs = ["x"]
+[[spring]]
+between = ["m.x", "ground"]
+k = 1.0
+[[damper]]
+between = ["m.x", "ground"]
+c = 0.02
+[[jenkins]]
+between = ["m", "ground"]
+tangential = ["x"]
+kt = 1.0
+mu = 1.0
+N0 = 1.0
+[[force]]
+dof = "m.x"
+amplitude = 0.5
+[output]
+dofs = ["m.x"]
+"""
+
+
+def test_auto_harmonics_stops_at_the_first_h_that_meets_the_target(tmp_path):
+    """harmonics = "auto" on the SDOF oscillator at F = 0.5: H grows by 2 from 3 until the largest
+    estimate over the branch is at most the target; the H before it did not meet it."""
+    import json
+
+    from jointfem.app import solve_scene, write_frf
+    from jointfem.rom import RomOptions
+    from jointfem.scene import load_scene
+
+    path = tmp_path / "auto.toml"
+    path.write_text(SCENE.format(solver='harmonics = "auto"\nharmonic_target = 0.03\nsamples = 256'))
+    scene = load_scene(path)
+    sol = solve_scene(scene)
+    auto = sol.frf.info["harmonics_auto"]
+    H = auto["chosen_H"]
+    assert auto["reached"] and sol.frf.harmonics.H == H and H > 3
+    errs = {a["H"]: a["max_estimate"] for a in auto["attempts"]}
+    assert list(errs) == list(range(3, H + 1, 2))
+    assert errs[H] <= 0.03 < errs[H - 2]
+    assert sol.frf.info["arrays"]["harmonic_error"].max() == errs[H]
+    summary = write_frf(sol, scene, tmp_path / "out", method="full", rom_options=RomOptions())
+    on_disk = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert on_disk["harmonics"] == H and on_disk["harmonics_auto"]["chosen_H"] == H == summary["harmonics"]
+
+
+@pytest.mark.parametrize("solver, key, words", [
+    ('harmonics = "many"', "solver.harmonics", "must be an integer"),
+    ('harmonics = 5\nharmonic_target = 0.01', "solver.harmonic_target", "only with harmonics"),
+    ('harmonics = "auto"\nharmonic_target = 2.0', "solver.harmonic_target", "must be < 1"),
+    ('harmonics = "auto"\nharmonics_max = 25\nsamples = 40', "solver.samples", "harmonics_max"),
+])
+def test_bad_auto_harmonics_keys_are_refused(tmp_path, solver, key, words):
+    from jointfem.scene import SceneError, load_scene
+
+    path = tmp_path / "bad.toml"
+    path.write_text(SCENE.format(solver=solver))
+    with pytest.raises(SceneError, match=rf"{key}.*{words}"):
+        load_scene(path)
