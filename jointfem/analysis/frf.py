@@ -96,21 +96,20 @@ def compute_frf(model: Structure | Reduction, options: SweepOptions, *,
     points = continue_branch(newton_system(problem), U0, options.omega_start, options.omega_end, x_scale=scales.x,
                              lam_scale=lam_scale, r_scale=scales.r, options=cont,
                              callback=callback, extra=record, adapt=problem.adaptation)
-    t_online = time.perf_counter() - t1
     records = [p.extra for p in points]
     layout = problem.layout
+    omega, X = np.array([p.lam for p in points]), np.array([p.x for p in points])
+    residual = np.array([p.residual for p in points])
     peaks = {}
     if options.locate_peaks:
-        t2 = time.perf_counter()
-        X, lam = np.array([p.x for p in points]), np.array([p.lam for p in points])
-        peaks = locate_peaks(problem, X, lam, np.array([p.residual for p in points]), records, layout.outputs,
-                             scales=scales, lam_scale=lam_scale, newton=cont.newton)
-        t_online += time.perf_counter() - t2
+        peaks = locate_peaks(problem, X, omega, residual, records, layout.outputs, scales=scales,
+                             lam_scale=lam_scale, newton=cont.newton)
+    t_online = time.perf_counter() - t1
     info = {"time_setup_s": t_setup, "time_online_s": t_online, "num_unknowns": problem.num_unknowns,
             "newton_tol": cont.newton.tol,
             # achieved max|R| / max|F| per point: below the Newton tol, or below kink_tol where a
             # root on a kink of the sampled law stalled Newton (docs/theory.md)
-            "arrays": {"residual": np.array([p.residual for p in points]),
+            "arrays": {"residual": residual,
                        "rom_size": np.array([r.size for r in records]),
                        # per point and pair: dissipated energy per cycle (J), tangential relative
                        # displacement amplitude (m), peak normal force (N); ContactLaw.summary
@@ -127,7 +126,6 @@ def compute_frf(model: Structure | Reduction, options: SweepOptions, *,
                                     f"{points[k].lam:.6g} rad/s ({int((he > options.harmonic_tol).sum())} of "
                                     f"{he.size} points): more harmonics are needed there (H = {h.H})")
         log.warning(info["harmonic_warning"])
-    omega = np.array([p.lam for p in points])
     re = np.array([np.nan if r.stability is None else r.stability for r in records])
     if np.isfinite(re).all():
         info["stability"] = "computed"
@@ -158,7 +156,7 @@ def compute_frf(model: Structure | Reduction, options: SweepOptions, *,
         info["arrays"]["active"] = np.array([r.active for r in records])
     return FrequencyResponse(
         omega=omega,
-        U=np.array([p.x for p in points]),
+        U=X,
         iterations=np.array([p.iterations for p in points]),
         states=np.array([r.states for r in records], dtype=np.int8),
         harmonics=h, num_dofs=q, outputs=dict(layout.outputs), dof_names=layout.dof_names,
