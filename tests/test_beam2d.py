@@ -1,20 +1,17 @@
 """The jointed beam: Euler-Bernoulli frequencies, linearised-model invariants, linear limit,
-and the three-level demo on its coarse setting."""
+and the time-integration check demo on a light setting.  (The three-level demo,
+demos/jointed_beam_levels.py, is run by tests/test_demos.py.)"""
 import dataclasses
 import json
 import sys
-from pathlib import Path
 
 import numpy as np
-import pytest
 import scipy.linalg as sla
 
 from jointfem.analysis.frf import SweepOptions, compute_frf
 from jointfem.harmonics import Harmonics
 from jointfem.models.beam2d import Beam2DSpec, cantilever_frequencies, create_beam2d
-
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / "demos"))
+from conftest import ROOT
 
 
 def test_cantilever_first_four_bending_frequencies_within_half_percent_of_euler_bernoulli():
@@ -50,18 +47,6 @@ def test_beam_linear_limit_equals_closed_form():
     assert (frf.states == 0).all()
     X = s.linear_response(frf.omega)[:, s.outputs["b1.mid.uy"]]
     np.testing.assert_allclose(frf.amplitude(s.outputs["b1.mid.uy"]), np.abs(X), rtol=1e-8)
-
-
-def test_levels_demo_coarse(tmp_path):
-    from jointed_beam_levels import run
-
-    report = run(tmp_path, coarse=True, progress=False)  # asserts its own invariants
-    for name in ("stuck", "stick_slip", "separation"):
-        for f in ("frf.csv", "branch.npz", "summary.json", "frf.png"):
-            assert (tmp_path / name / f).stat().st_size > 0
-    assert json.loads((tmp_path / "levels.json").read_text())["F_sep_N"] == pytest.approx(report["F_sep_N"])
-    # the separating level softens: its peak lies below the stuck resonance
-    assert report["separation"]["peak_Hz"] < report["stuck"]["peak_Hz"] - 0.5
 
 
 def test_time_integration_check_runs_and_holds_on_the_stuck_flank(tmp_path):

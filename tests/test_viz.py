@@ -28,6 +28,21 @@ def _colour_pixels(img: np.ndarray, box, k: int) -> int:
     return int(np.all(crop == viz.state_rgb()[k], axis=1).sum())
 
 
+def _legend_pixels(img: np.ndarray, pic, k: int) -> int:
+    """Pixels of state k's colour outside the picture's map: its swatch in the legend."""
+    h, w = img.shape[:2]
+    return _colour_pixels(img, (0, 0, w, h), k) - _colour_pixels(img, pic.map_box, k)
+
+
+def _viridis_colours(img: np.ndarray) -> int:
+    """Distinct colours of the image within 2 levels of matplotlib's viridis (a colour bar's gradient)."""
+    import matplotlib
+
+    ramp = np.round(matplotlib.colormaps["viridis"](np.linspace(0, 1, 256))[:, :3] * 255).astype(int)
+    px = np.unique(img.reshape(-1, 3).astype(int), axis=0)
+    return int((np.abs(px[:, None, :] - ramp[None]).max(axis=-1).min(axis=1) <= 2).sum())
+
+
 def _assert_picture(pic):
     img = _png(pic.path)
     assert img.shape[:2] == (pic.size[1], pic.size[0])  # the size asked for
@@ -78,13 +93,19 @@ def test_interface_map_stick_slip(stick_slip):
         assert _colour_pixels(img, inter.map_box, k) > 50, viz.STATE_NAMES[k]
     assert _colour_pixels(img, inter.map_box, 2) == 0  # nothing separates in this run
     assert inter.legends == ["stick", "slip", "separated"]
+    # ... and drawn: a swatch of every state's colour outside the map, separated's too though
+    # nothing separates (measured 99 pixels or more)
+    assert all(_legend_pixels(img, inter, k) > 50 for k in range(3))
     assert len(inter.colorbars) == 6
     branch = [p for p in pics if p.path.name == "states_branch.png"][0]
     bimg = _assert_picture(branch)
     assert all(_colour_pixels(bimg, branch.map_box, k) > 20 for k in (0, 1))
     shape = [p for p in pics if p.path.name.startswith("shape_")][0]
-    _assert_picture(shape)
+    simg = _assert_picture(shape)
     assert shape.size == (1200, 600) and shape.colorbars == ["first-harmonic |u| [m]"]
+    # the colour bar is drawn: a viridis gradient along the bottom 15 % of the picture, below the
+    # model (measured 336 distinct colours of the ramp there)
+    assert _viridis_colours(simg[int(0.85 * simg.shape[0]):]) > 200
 
 
 def test_state_map_separating(separating):
@@ -97,6 +118,7 @@ def test_state_map_separating(separating):
     for k in range(3):
         assert _colour_pixels(img, branch.map_box, k) > 5, viz.STATE_NAMES[k]  # the beam slips at one point only
     assert branch.legends == ["stick", "slip", "separated"]
+    assert all(_legend_pixels(img, branch, k) > 50 for k in range(3))  # drawn: measured 180 or more
     assert (separating / "states_branch.png").is_file()
     inter = sorted(separating.glob("interface_*.png"))
     assert inter
