@@ -32,6 +32,7 @@ class HBMResidual(KeepsLastEvaluation):
     """Precomputed harmonic operators for one Structure and one Harmonics."""
 
     DENSE_MAX = 3000  # unknowns; a ROM's matrices are dense, and sparse bookkeeping would dominate
+    _hill = None  # (I (x) D, nabla (x) M, I (x) M) for hill_operators
 
     def __init__(self, structure: Structure, harmonics: Harmonics, *, dense: bool | None = None):
         self.structure = structure
@@ -67,12 +68,13 @@ class HBMResidual(KeepsLastEvaluation):
         """(Delta1, Delta2) of Hill's method: a perturbation e^{s t} v(omega t) of a periodic solution
         satisfies (J + s Delta1 + s^2 Delta2) v = 0, with Delta1 = I (x) D + 2 omega (nabla (x) M)
         and Delta2 = I (x) M (J: the HBM Jacobian at the solution; the contact Jacobian is frozen)."""
-        nh = self.harmonics.num_hc
-        eye = sp.identity(nh, format="csr")
-        nab = sp.csr_matrix(self.harmonics.derivative_matrix())
-        d1 = sp.kron(eye, self.structure.D) + 2.0 * omega * sp.kron(nab, self.structure.M)
-        d2 = sp.kron(eye, self.structure.M)
-        return d1.tocsr(), d2.tocsr()
+        if self._hill is None:  # the omega-free parts, built once
+            eye = sp.identity(self.harmonics.num_hc, format="csr")
+            nab = sp.csr_matrix(self.harmonics.derivative_matrix())
+            self._hill = (sp.kron(eye, self.structure.D, format="csr"), sp.kron(nab, self.structure.M, format="csr"),
+                          sp.kron(eye, self.structure.M, format="csr"))
+        D, nabM, M = self._hill
+        return (D + (2.0 * omega) * nabM).tocsr(), M
 
     def linear_operator(self, omega: float):
         A = self._A0 + omega * self._A1 + omega**2 * self._A2
