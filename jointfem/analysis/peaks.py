@@ -22,12 +22,13 @@ reported as such.
 from __future__ import annotations
 
 import logging
-from dataclasses import asdict, dataclass, replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.optimize import minimize_scalar
 
 from ..continuation.arclength import ContinuationError, ConvergenceError, NewtonOptions, correct
+from ..harmonics import Harmonics
 from ..hbm.problem import PointRecord, Problem, Scales, newton_system
 
 log = logging.getLogger(__name__)
@@ -49,16 +50,12 @@ class Peak:
     residual: float = 0.0  # achieved max|R|/r_scale at the located point
     reason: str = ""
 
-    def as_dict(self) -> dict:
-        return asdict(self)
 
-
-def output_amplitude(x: np.ndarray, dof, num_hc: int) -> float:
+def output_amplitude(x: np.ndarray, dof, harmonics: Harmonics) -> float:
     """First-harmonic amplitude of an output (index or recovery row) of coefficients x."""
-    X = x.reshape(num_hc, -1)
-    c = X[1] @ dof if np.ndim(dof) else X[1, dof]
-    s = X[2] @ dof if np.ndim(dof) else X[2, dof]
-    return float(np.hypot(c, s))
+    X = x.reshape(harmonics.num_hc, -1)
+    out = X @ dof if np.ndim(dof) else X[:, dof]
+    return float(harmonics.amplitude(out, 1))
 
 
 class _Segments:
@@ -110,8 +107,8 @@ def locate_peaks(problem: Problem, x: np.ndarray, lam: np.ndarray, residual: np.
 
 def _locate(segments: _Segments, records, dof, *, grid: int, omega_rtol: float) -> Peak:
     problem, x, lam = segments.problem, segments.x, segments.lam
-    nh = problem.harmonics.num_hc
-    amp = np.array([output_amplitude(xi, dof, nh) for xi in x])
+    h = problem.harmonics
+    amp = np.array([output_amplitude(xi, dof, h) for xi in x])
     i = int(np.argmax(amp))
     if i == 0 or i == amp.size - 1:
         return Peak(float(lam[i]), float(amp[i]), located=False, edge=True,
@@ -127,12 +124,12 @@ def _locate(segments: _Segments, records, dof, *, grid: int, omega_rtol: float) 
 
         def f(t: float) -> float:
             xs, ls, res = segments.point(k, float(t))
-            return -output_amplitude(xs, dof, nh)
+            return -output_amplitude(xs, dof, h)
 
         def take(t: float) -> None:
             nonlocal best
             xs, ls, res = segments.point(k, t)
-            a = output_amplitude(xs, dof, nh)
+            a = output_amplitude(xs, dof, h)
             if a > best[0]:
                 best = (a, ls, res)
 
