@@ -199,6 +199,9 @@ def compare_scene(scene: Scene, methods: str, defaults: RomOptions, *, out: Path
     from .results import atomic_write_text, write_table
 
     specs = [parse_method(m, defaults) for m in methods.split(",") if m.strip()]
+    if scene.solver.harmonics_auto:
+        raise SceneError(scene.path, "solver.harmonics", "auto", "compare measures every method at one H: give "
+                         "harmonics a number, or --harmonics (jointfem frf chooses H with \"auto\")")
     check_solvable(scene)
     structure = create_structure(scene)
     output = output or next(iter(structure.outputs), None)

@@ -118,3 +118,15 @@ def test_bad_auto_harmonics_keys_are_refused(tmp_path, solver, key, words):
     path.write_text(SCENE.format(solver=solver))
     with pytest.raises(SceneError, match=rf"{key}.*{words}"):
         load_scene(path)
+
+
+def test_compare_refuses_auto_harmonics(tmp_path):
+    from jointfem.app import compare_scene
+    from jointfem.rom import RomOptions
+    from jointfem.scene import SceneError, load_scene
+
+    path = tmp_path / "auto.toml"
+    path.write_text(SCENE.format(solver='harmonics = "auto"'))
+    with pytest.raises(SceneError, match=r"solver.harmonics.*one H"):
+        compare_scene(load_scene(path), "penalty", RomOptions(modes=1), out=tmp_path / "out")
+    assert not (tmp_path / "out").exists()
