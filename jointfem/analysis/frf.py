@@ -74,7 +74,7 @@ def compute_frf(model: Structure | Reduction, options: SweepOptions, *,
         ev = problem.evaluate(U, omega, jacobian=stability)
         rec = replace(problem.record(U, omega, ev), harmonic_error=top_harmonic_share(ev.contact, h))
         if stability:
-            rec = replace(rec, stability=max_real_part(problem, U, omega, ev))
+            rec = replace(rec, stability=max_real_part(problem, omega, ev))
         return rec
 
     # a frequency response lives at positive omega: a branch that leaves twice the sweep's span

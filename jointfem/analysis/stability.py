@@ -49,7 +49,7 @@ def floquet_exponents(J, d1, d2, num: int) -> np.ndarray:
     return s[np.argsort(np.abs(s.imag), kind="stable")][:num]
 
 
-def max_real_part(problem: Problem, x: np.ndarray, lam: float, evaluation: Evaluation) -> float | None:
+def max_real_part(problem: Problem, lam: float, evaluation: Evaluation) -> float | None:
     """The largest real part of the point's Floquet exponents (1/s), or None where the problem
     offers no Hill operators."""
     ops = problem.hill_operators(lam)
