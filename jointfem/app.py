@@ -53,6 +53,7 @@ def sweep_options(scene: Scene, *, stability: str = "auto") -> SweepOptions:
         stability=STABILITY[stability],
         omega_start=s.omega_start, omega_end=s.omega_end, harmonics=Harmonics(s.harmonics, s.samples),
         continuation=ContinuationOptions(ds0=s.ds0, ds_min=s.ds_min, ds_max=s.ds_max, max_points=s.max_points,
+                                         time_limit=s.time_limit,
                                          newton=NewtonOptions(tol=s.tol, relaxed_kink_tol=max(s.kink_tol, s.tol))))
 
 
@@ -87,11 +88,22 @@ def solve_scene(scene: Scene, *, progress: bool = False, method: str = "full",
                    bar_format="{desc}: {percentage:3.0f}%|{bar}| {n:.4g}/{total:.4g} rad/s [{elapsed}<{remaining}]"
                               "{postfix}")
 
+        count = [0, 0.0]
+
         def callback(point):
+            # the bar counts the span covered; the postfix the points (a branch that turns back at a
+            # fold makes progress the bar cannot show), refreshed at most twice a second
+            count[0] += 1
             done = min(abs(point.lam - s.omega_start), span)
+            now = time.monotonic()
+            bar.set_postfix_str(f"points={count[0]} omega={point.lam:.6g} newton={point.iterations}",
+                                refresh=False)
             if done > bar.n:
                 bar.update(done - bar.n)
-            bar.set_postfix_str(f"omega={point.lam:.6g} newton={point.iterations}", refresh=False)
+                count[1] = now
+            elif now - count[1] > 0.5:
+                bar.refresh()
+                count[1] = now
 
     model = structure if rom is None else rom
     try:

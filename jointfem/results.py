@@ -170,6 +170,8 @@ def save_frf(frf: FrequencyResponse, out: Path, *, summary: dict) -> dict:
     summary = dict(summary)
     summary.update({"num_points": int(frf.num_points), "newton_iterations_total": int(frf.iterations.sum()),
                     "peaks": peaks})
+    if "continuation" in frf.info:  # refused steps, corners passed, steps redone (continue_branch)
+        summary["continuation"] = dict(frf.info["continuation"])
     he = frf.info.get("arrays", {}).get("harmonic_error")
     if he is not None:
         summary["harmonic_error"] = {"max": float(he.max()), "at_omega_rad_s": float(frf.omega[int(np.argmax(he))]),

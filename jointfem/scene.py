@@ -53,6 +53,7 @@ class SolverSpec:
     ds_max: float = ContinuationOptions.ds_max
     tol: float = NewtonOptions.tol
     max_points: int = ContinuationOptions.max_points
+    time_limit: float = 3600.0  # s per branch: a sweep that cannot go on stops, keeping its points
     kink_tol: float = NewtonOptions.relaxed_kink_tol  # residual accepted for a corrector stalled on a kink at the smallest steps
 
     @property
@@ -207,7 +208,8 @@ def _solver(t: _Table) -> SolverSpec:
         harmonics=H, samples=N, ds0=t.number("ds0", SolverSpec.ds0, gt=0),
         ds_min=t.number("ds_min", SolverSpec.ds_min, gt=0), ds_max=t.number("ds_max", SolverSpec.ds_max, gt=0),
         tol=t.number("tol", SolverSpec.tol, gt=0), max_points=t.integer("max_points", SolverSpec.max_points, ge=2),
-        kink_tol=t.number("kink_tol", SolverSpec.kink_tol, gt=0), harmonics_auto=auto, harmonic_target=target,
+        kink_tol=t.number("kink_tol", SolverSpec.kink_tol, gt=0),
+        time_limit=t.number("time_limit", SolverSpec.time_limit, gt=0), harmonics_auto=auto, harmonic_target=target,
         harmonics_max=H_max, samples_given=t.has("samples"))
     if spec.kink_tol > 1e-3:
         t.fail("kink_tol", spec.kink_tol, "must be <= 1e-3 (a residual of 0.1 % of the force)")

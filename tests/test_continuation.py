@@ -43,18 +43,51 @@ def test_newton_error_names_iterations_residual_and_lam():
     assert err.value.iterations == 5 and err.value.residual >= 1.0
 
 
-def test_stops_clearly_at_the_minimum_step():
-    """R = |x| - lam has a right-angle corner at the origin: the hyperplane of a step never meets
-    the outgoing half, so the step shrinks to ds_min and a ContinuationError says where."""
-    def corner(x, lam):
-        x = np.atleast_1d(x)
-        return np.abs(x) - lam, np.diag(np.sign(x) + (x == 0)), -np.ones(1)
+def corner(x, lam):
+    """R = |x| - lam: a right-angle corner at the origin where the branch turns back in lam (a
+    fold on a kink, as a sampled contact law makes them)."""
+    x = np.atleast_1d(x)
+    return np.abs(x) - lam, np.diag(np.sign(x) + (x == 0)), -np.ones(1)
 
-    with pytest.raises(ContinuationError, match=r"ds_min = 1.0e-04 at lam = ") as err:
+
+def test_passes_a_fold_on_a_corner():
+    """The hyperplane of a step never meets the outgoing half of |x| = lam, however short the
+    step.  The corner step probes the Jacobian beyond the corner, steps along that piece's tangent
+    (oriented to keep the orientation of the branch) and follows the branch up the other side."""
+    with pytest.raises(ContinuationError, match=r"left \[-1, 2\]") as err:
         continue_branch(corner, np.array([-1.0]), 1.0, -1.0, x_scale=1.0, lam_scale=1.0, r_scale=1.0,
-                        options=ContinuationOptions(ds0=0.1, ds_max=0.1, ds_min=1e-4, max_points=200))
+                        options=ContinuationOptions(ds0=0.1, ds_max=0.1, max_points=400, lam_bounds=(-1.0, 2.0)))
+    pts = err.value.points  # lam never reaches -1: the branch turned back at the corner, up to lam = 2
+    x = np.array([p.x[0] for p in pts])
+    lam = np.array([p.lam for p in pts])
+    np.testing.assert_allclose(np.abs(x), lam, atol=1e-12)  # on the branch
+    assert np.all(np.diff(x) > 0)  # through the corner, never back
+    assert x[-1] > 1.8
+    # the corner step is taken only once the step is short (corner_ds = 1e-4): no point cuts it
+    assert np.abs(x).min() < 1e-4
+    assert lam.min() < 0.1  # the turn was taken near the corner (not skipped by a long step)
+
+
+def test_without_corner_steps_stops_clearly_at_the_corner():
+    """With corner steps off the step shrinks to ds_min at the corner and a ContinuationError says
+    where, and carries the points converged before it."""
+    with pytest.raises(ContinuationError, match=r"stopped at lam = .* ds_min = 1.0e-04") as err:
+        continue_branch(corner, np.array([-1.0]), 1.0, -1.0, x_scale=1.0, lam_scale=1.0, r_scale=1.0,
+                        options=ContinuationOptions(ds0=0.1, ds_max=0.1, ds_min=1e-4, max_points=200,
+                                                    corner_steps=False))
     lam = float(re.search(r"at lam = (\S+)", str(err.value)).group(1))
     assert abs(lam) < 1e-3  # it stopped at the corner, not before or past it
+    kept = err.value.points
+    assert len(kept) > 5 and kept[-1].lam == pytest.approx(lam)
+    assert all(abs(abs(p.x[0]) - p.lam) < 1e-12 for p in kept)
+
+
+def test_time_limit_stops_with_the_points_kept():
+    """A budget reached stops the branch with a message naming it, never a hang."""
+    with pytest.raises(ContinuationError, match=r"time limit of 0 s") as err:
+        continue_branch(folded, np.array([-1.6]), -2.0, 2.0, x_scale=1.0, lam_scale=1.0, r_scale=1.0,
+                        options=ContinuationOptions(time_limit=0.0))
+    assert len(err.value.points) == 1  # the start point
 
 
 def twin(x, lam, eps=0.02):

@@ -93,9 +93,10 @@ def compute_frf(model: Structure | Reduction, options: SweepOptions, *,
         cont = replace(cont, max_rel_change=1.0)
     U0 = problem.initial_guess(options.omega_start)
     t1 = time.perf_counter()
+    steps = {}
     points = continue_branch(newton_system(problem), U0, options.omega_start, options.omega_end, x_scale=scales.x,
                              lam_scale=lam_scale, r_scale=scales.r, options=cont,
-                             callback=callback, extra=record, adapt=problem.adaptation)
+                             callback=callback, extra=record, adapt=problem.adaptation, stats=steps)
     records = [p.extra for p in points]
     layout = problem.layout
     omega, X = np.array([p.lam for p in points]), np.array([p.x for p in points])
@@ -106,7 +107,7 @@ def compute_frf(model: Structure | Reduction, options: SweepOptions, *,
                              lam_scale=lam_scale, newton=cont.newton)
     t_online = time.perf_counter() - t1
     info = {"time_setup_s": t_setup, "time_online_s": t_online, "num_unknowns": problem.num_unknowns,
-            "newton_tol": cont.newton.tol,
+            "newton_tol": cont.newton.tol, "continuation": steps,
             # achieved max|R| / max|F| per point: below the Newton tol, or below kink_tol where a
             # root on a kink of the sampled law stalled Newton (docs/theory.md)
             "arrays": {"residual": residual,

@@ -12,6 +12,8 @@ over folds or onto other branches; true corners of a nonsmooth branch pass).
 from __future__ import annotations
 
 import logging
+import time
+import warnings
 from dataclasses import dataclass, field, replace
 from typing import Callable
 
@@ -34,7 +36,13 @@ class ConvergenceError(RuntimeError):
 
 
 class ContinuationError(RuntimeError):
-    """Continuation cannot go on (step at its minimum, or a non-finite value)."""
+    """Continuation cannot go on (step at its minimum, a budget reached, the branch out of bounds).
+
+    ``points``: the points converged before it stopped (a caller may keep them)."""
+
+    def __init__(self, message: str, *, points: list | None = None):
+        super().__init__(message)
+        self.points = list(points or [])
 
 
 class Adaptive:
@@ -87,6 +95,19 @@ class ContinuationOptions:
     # such rule; a forced response never passes through zero, so a step that flips its sign has jumped)
     max_rel_change: float | None = None
     lam_bounds: tuple[float, float] | None = None  # the branch must stay inside (else ContinuationError)
+    # corner steps: a step refused at most this long, across which the orientation of the branch
+    # flips (a fold on a kink of the sampled law), is tried again along the tangent of the piece
+    # beyond the first flip, located to corner_bisections halvings of the step
+    corner_steps: bool = True
+    corner_ds: float = 1e-4  # as turn_ds_floor: a step this short does not cut a smooth fold (< 1e-4 of the scales)
+    corner_bisections: int = 8
+    # a corrector converges in at most 5 iterations on the beam and lap joints (measured); one that
+    # has not in this many is cycling between the pieces of a kink, and the step is refused sooner
+    corrector_max_iter: int = 15
+    # kink-aware steps: the secant is the tangent at a point whose corrector stalled on a kink, and a
+    # tangent's turn beyond max_turn_deg that stays as large when the step halves is a corner, accepted
+    secant_on_kinks: bool = True
+    time_limit: float | None = None  # s: the branch stops with a ContinuationError (points kept) past this
     newton: NewtonOptions = field(default_factory=NewtonOptions)
 
 
@@ -270,12 +291,14 @@ def continue_branch(fun: Callable, x0: np.ndarray, lam0: float, lam_end: float, 
                     r_scale: float, options: ContinuationOptions = ContinuationOptions(),
                     callback: Callable[[ContinuationPoint], None] | None = None,
                     extra: Callable[[np.ndarray, float], object] | None = None,
-                    adapt: Adaptive | None = None) -> list[ContinuationPoint]:
+                    adapt: Adaptive | None = None, stats: dict | None = None) -> list[ContinuationPoint]:
     """Follow R(x, lam) = 0 from (x0, lam0) until lam passes lam_end (either direction).
 
     fun(x, lam) -> (R, dR/dx, dR/dlam).  x0 is an initial guess at lam0 (refined by Newton).
     ``extra(x, lam)`` is stored with each point; ``callback(point)`` is called per accepted point.
     ``adapt``: hooks of a problem that changes along the branch (see Adaptive).
+    ``stats``: a dict filled (also when it stops) with the counts of refused steps, corners
+    passed and steps redone because the problem changed.
     """
     opts = options
     x_scale = np.broadcast_to(np.asarray(x_scale, float), np.shape(x0)).copy()
@@ -306,91 +329,188 @@ def continue_branch(fun: Callable, x0: np.ndarray, lam0: float, lam_end: float, 
     t, orient = _tangent(J, dl, t)
     ds = opts.ds0
     cos_max = np.cos(np.deg2rad(opts.max_turn_deg))
+    cos_rev = -np.cos(np.deg2rad(opts.max_reversal_deg))
     redo = 0
+    counts = stats if stats is not None else {}
+    counts.update(refused_steps=0, corners_passed=0, redone_steps=0)
+    t_start = time.monotonic()
+
+    def stop(why: str):
+        return ContinuationError(f"continuation stopped at lam = {mu * lam_scale:.9g} before reaching "
+                                 f"{lam_end:.9g}, after {len(points)} points and {counts['refused_steps']} refused steps: {why}",
+                                 points=points)
+
+    turned = []  # the tangent's turns (deg) of the steps refused for it at this point
+
+    def attempt(d, ds, base=None):
+        """One step of length ds along the unit direction d from ``base`` (default: the last point
+        (y, mu)).  Returns (y_new, mu_new, iterations, residual, t_new, orient_new, changed, failure)."""
+        z_p = (np.append(y, mu) if base is None else base) + ds * d
+        # A root on a kink of the sampled law (a sample changing state) can stall Newton just
+        # above kink_tol however short the step: accept it at a looser, recorded residual.
+        nopts = replace(opts.newton, max_iter=min(opts.newton.max_iter, opts.corrector_max_iter))
+        if ds <= opts.relax_ds:
+            nopts = replace(nopts, kink_tol=max(opts.newton.kink_tol, opts.newton.relaxed_kink_tol))
+        try:
+            y_new, mu_new, it, res = _corrector(g, z_p[:-1], z_p[-1], d, nopts, lam_scale)
+            changed = adapt is not None and adapt.after_converge(y_new * x_scale, mu_new * lam_scale)
+            if changed:
+                # the problem changed: the tangent at the last accepted point, then the same step again
+                log.debug("step redone at lam=%.6g: the problem changed", mu_new * lam_scale)
+                return y_new, mu_new, it, res, None, None, True, None
+            R, J, dl = g(y_new, mu_new)
+            t_new, orient_new = _tangent(J, dl, d)
+        except (ConvergenceError, np.linalg.LinAlgError, RuntimeError) as exc:
+            return None, None, 0, np.inf, None, None, False, str(exc)
+        sec = np.append(y_new, mu_new) - (np.append(y, mu) if base is None else base)
+        sec = sec / max(np.linalg.norm(sec), 1e-300)
+        if opts.secant_on_kinks and res > opts.newton.tol:
+            # the corrector stalled on a kink: the root lies on the boundary between pieces of the
+            # law, and each piece's tangent points off it; along such a ridge the secant is the
+            # branch's direction (and the orientation is that of the piece it came from)
+            t_new, orient_new = sec, orient
+        # A true corner of the branch (slip onset on a sampled period is one) turns the
+        # tangent however short the step; only steps longer than turn_ds_floor are refused.
+        failure = None
+        cos_turn = float(t_new @ d)
+        jump = float(np.linalg.norm(np.append(y_new - y, mu_new - mu)))
+        if jump > opts.max_jump * ds and ds > opts.turn_ds_floor:
+            # the hyperplane met the branch far from the predictor: another part of it
+            failure = f"corrector landed {jump / ds:.1f} step lengths away"
+        elif orient_new != orient and ds > opts.turn_ds_floor:
+            # the corrector met another branch (or passed a bifurcation point): never silently
+            failure = "the orientation of the branch (sign of the bordered Jacobian) changed"
+        elif cos_turn < cos_max and ds > opts.turn_ds_floor and not (
+                base is None and opts.secant_on_kinks and len(turned) >= 2
+                and np.rad2deg(np.arccos(np.clip(cos_turn, -1, 1))) >= 0.8 * max(turned[-2:])):
+            # (a turn that stays as large over two halvings of the step is a corner of the branch at
+            # a kink, not curvature, which would shrink with the step: it is then accepted)
+            turned.append(float(np.rad2deg(np.arccos(np.clip(cos_turn, -1, 1)))))
+            failure = f"tangent turned by {turned[-1]:.1f} deg"
+        elif opts.max_rel_change is not None and (rel := np.linalg.norm(y_new - y) / max(
+                np.linalg.norm(y), np.linalg.norm(y_new), 1e-300)) > opts.max_rel_change:
+            # however short the step: x flipped sign (a branch through an unbounded resonance,
+            # or another branch met by the hyperplane) -- never accepted silently
+            failure = f"the solution changed by {rel:.2f} times its size in one step"
+        elif cos_turn < cos_rev:
+            # however short the step: a tangent that reverses retraces the branch backwards
+            failure = f"tangent reversed ({np.rad2deg(np.arccos(np.clip(cos_turn, -1, 1))):.1f} deg)"
+        return y_new, mu_new, it, res, t_new, orient_new, False, failure
+
+    def sign_at(z, d):
+        """The orientation at z (0 where the bordered matrix is singular) and the Jacobian there."""
+        R, J, dl = g(z[:-1], z[-1])
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            return _solve_with_sign(_bordered(J, dl, d), np.append(np.zeros(J.shape[0]), 1.0))[1], J, dl
+
+    def beyond(d, ds):
+        """A fold on a kink within ds along d: the orientation of the branch flips between the last
+        point and the predictor, and the hyperplane normal to d never meets the branch beyond (it
+        turns back).  The first flip is located by bisection to ds / 2^corner_bisections, and
+        (base, t2) returned: the point just past it and the tangent of the piece there, oriented to
+        keep the orientation of the branch.  None when the orientation does not flip."""
+        z0 = np.append(y, mu)
+        try:
+            o, J, dl = sign_at(z0 + ds * d, d)
+            if o == orient:
+                return None
+            lo, hi = 0.0, ds
+            for _ in range(opts.corner_bisections):
+                mid = 0.5 * (lo + hi)
+                o_mid, J_mid, dl_mid = sign_at(z0 + mid * d, d)
+                if o_mid == orient:
+                    lo = mid
+                else:
+                    hi, J, dl = mid, J_mid, dl_mid
+        except (np.linalg.LinAlgError, RuntimeError, ValueError):
+            return None
+        t2 = None
+        # bordered by d, the null vector of [J, dl] is singular where the branch turns by 90 deg:
+        # then by a fixed generic vector; the orientation is then read with t2 itself
+        for b in (d, np.random.default_rng(0).standard_normal(d.size)):
+            try:
+                with warnings.catch_warnings():
+                    warnings.simplefilter("ignore")
+                    t2, _ = _tangent(J, dl, b / np.linalg.norm(b))
+                    t2, o2 = _tangent(J, dl, t2)
+            except (np.linalg.LinAlgError, RuntimeError, ValueError):
+                continue
+            if np.all(np.isfinite(t2)):
+                break
+            t2 = None
+        if t2 is None:
+            return None
+        if o2 != orient:
+            t2 = -t2
+        if float(t2 @ d) < cos_rev:
+            return None
+        return z0 + hi * d, t2
+
     while (mu - mu_end) * direction < 0:
         if len(points) >= opts.max_points:
-            raise ContinuationError(f"continuation stopped after {opts.max_points} points at "
-                                    f"lam = {mu * lam_scale:.9g} before reaching {lam_end:.9g}; the last "
-                                    f"solution is {np.max(np.abs(y)):.3g} times its scale"
-                                    + ("" if np.max(np.abs(y)) < 100 else " (growing without bound: an undamped "
-                                       "resonance that friction cannot hold?)"))
+            raise stop(f"max_points = {opts.max_points} reached; the last solution is {np.max(np.abs(y)):.3g} "
+                       f"times its scale" + ("" if np.max(np.abs(y)) < 100 else " (growing without bound: an "
+                                             "undamped resonance that friction cannot hold?)"))
+        if opts.time_limit is not None and time.monotonic() - t_start > opts.time_limit:
+            raise stop(f"the time limit of {opts.time_limit:g} s was reached (time_limit)")
         if adapt is not None and redo == 0:
             x_new = adapt.before_step(y * x_scale, mu * lam_scale)
             if x_new is not None:
                 y = x_new / x_scale
                 R, J, dl = g(y, mu)
                 t, orient = _tangent(J, dl, t)
-        z_p = np.append(y, mu) + ds * t
-        failure, changed = None, False
-        try:
-            # A root on a kink of the sampled law (a sample changing state) can stall Newton just
-            # above kink_tol however short the step: accept it at a looser, recorded residual.
-            nopts = opts.newton if ds > opts.relax_ds else replace(opts.newton, kink_tol=max(
-                opts.newton.kink_tol, opts.newton.relaxed_kink_tol))
-            y_new, mu_new, it, res = _corrector(g, z_p[:-1], z_p[-1], t, nopts, lam_scale)
-            changed = adapt is not None and adapt.after_converge(y_new * x_scale, mu_new * lam_scale)
-            if changed:
-                # the problem changed: the tangent at the last accepted point, then the same step again
-                R, J, dl = g(y, mu)
-                t, orient = _tangent(J, dl, t)
-                t_new, orient_new = t, orient
-                log.debug("step redone at lam=%.6g: the problem changed", mu_new * lam_scale)
-            else:
-                R, J, dl = g(y_new, mu_new)
-                t_new, orient_new = _tangent(J, dl, t)
-            # A true corner of the branch (slip onset on a sampled period is one) turns the
-            # tangent however short the step; only steps longer than turn_ds_floor are refused.
-            jump = float(np.linalg.norm(np.append(y_new - y, mu_new - mu)))
-            if not changed and jump > opts.max_jump * ds and ds > opts.turn_ds_floor:
-                # the hyperplane met the branch far from the predictor: another part of it
-                failure = f"corrector landed {jump / ds:.1f} step lengths away"
-            elif not changed and orient_new != orient and ds > opts.turn_ds_floor:
-                # the corrector met another branch (or passed a bifurcation point): never silently
-                failure = "the orientation of the branch (sign of the bordered Jacobian) changed"
-            elif float(t_new @ t) < cos_max and ds > opts.turn_ds_floor:
-                failure = f"tangent turned by {np.rad2deg(np.arccos(np.clip(t_new @ t, -1, 1))):.1f} deg"
-            elif not changed and opts.max_rel_change is not None and (rel := np.linalg.norm(y_new - y) / max(
-                    np.linalg.norm(y), np.linalg.norm(y_new), 1e-300)) > opts.max_rel_change:
-                # however short the step: x flipped sign (a branch through an unbounded resonance,
-                # or another branch met by the hyperplane) -- never accepted silently
-                failure = f"the solution changed by {rel:.2f} times its size in one step"
-            elif float(t_new @ t) < -np.cos(np.deg2rad(opts.max_reversal_deg)):
-                # however short the step: a tangent that reverses retraces the branch backwards
-                failure = f"tangent reversed ({np.rad2deg(np.arccos(np.clip(t_new @ t, -1, 1))):.1f} deg)"
-        except (ConvergenceError, np.linalg.LinAlgError, RuntimeError) as exc:
-            failure = str(exc)
+        d = t
+        y_new, mu_new, it, res, t_new, orient_new, changed, failure = attempt(d, ds)
+        if failure is not None and opts.corner_steps and ds <= opts.corner_ds:
+            # a fold on a corner of the piecewise-smooth branch (a kink of the sampled law) within
+            # the step: step along the branch beyond it instead of shrinking towards it
+            found = beyond(t, ds)
+            if found is not None:
+                base, d2 = found
+                out = attempt(d2, ds, base)
+                if out[7] is None:
+                    log.debug("corner passed at lam=%.6g: the branch turns by %.1f deg (%s)", mu * lam_scale,
+                              np.rad2deg(np.arccos(np.clip(d2 @ t, -1, 1))), failure)
+                    d = d2
+                    y_new, mu_new, it, res, t_new, orient_new, changed, failure = out
+                    counts["corners_passed"] += not changed
         if failure is None and changed:
+            R, J, dl = g(y, mu)
+            t, orient = _tangent(J, dl, t)
             redo += 1
+            counts["redone_steps"] += 1
             if redo > Adaptive.max_redo:
-                raise ContinuationError(f"the problem kept changing at lam = {mu * lam_scale:.9g} "
-                                        f"after {redo - 1} redone steps")
+                raise stop(f"the problem kept changing ({redo - 1} redone steps)")
             continue
         if failure is not None:
+            counts["refused_steps"] += 1
             ds *= 0.5
             log.debug("step rejected at lam=%.6g (%s); ds -> %.3g", mu * lam_scale, failure, ds)
             if ds < opts.ds_min:
-                raise ContinuationError(
-                    f"continuation step fell below ds_min = {opts.ds_min:.1e} at lam = {mu * lam_scale:.9g} "
-                    f"after {len(points)} points; last failure: {failure}")
+                raise stop(f"the step fell below ds_min = {opts.ds_min:.1e}; last failure: {failure}")
             continue
         if opts.lam_bounds is not None and not opts.lam_bounds[0] <= mu_new * lam_scale <= opts.lam_bounds[1]:
-            raise ContinuationError(
-                f"the branch left [{opts.lam_bounds[0]:.6g}, {opts.lam_bounds[1]:.6g}] at lam = "
-                f"{mu_new * lam_scale:.9g} after {len(points)} points: it turned back at a fold and "
-                f"does not come back to lam_end = {lam_end:.9g}")
-        t_prev = t
+            raise stop(f"the branch left [{opts.lam_bounds[0]:.6g}, {opts.lam_bounds[1]:.6g}] at lam = "
+                       f"{mu_new * lam_scale:.9g}: it turned back at a fold and does not come back to lam_end")
         redo = 0
+        turned.clear()
         y, mu, t, orient = y_new, mu_new, t_new, orient_new
         x = y * x_scale
         points.append(ContinuationPoint(x, mu * lam_scale, it, ds, extra(x, mu * lam_scale) if extra else None,
                                         residual=res))
+        log.debug("point %d at lam=%.9g: ds %.3g, %d iterations, |y| %.6g", len(points) - 1, mu * lam_scale, ds,
+                  it, float(np.linalg.norm(y)))
         if callback:
             callback(points[-1])
         # Step control: grow after easy corrections, but keep the tangent turning at most
-        # ``target_turn_deg`` per step so that peaks and folds are resolved, not stepped over.
-        turn = float(np.rad2deg(np.arccos(np.clip(t_prev @ t, -1.0, 1.0))))
+        # ``target_turn_deg`` per step so that peaks and folds are resolved, not stepped over
+        # (measured from the direction stepped along, so a corner passed does not count).
+        turn = float(np.rad2deg(np.arccos(np.clip(d @ t, -1.0, 1.0))))
         if turn > opts.target_turn_deg:
             ds = max(ds * max(opts.target_turn_deg / turn, 0.25), opts.ds_min)
-        elif it <= opts.target_iter:
+        elif it <= opts.target_iter or (opts.secant_on_kinks and res > opts.newton.tol):
+            # (a corrector stalled on a kink takes stall_iter iterations whatever the step)
             ds = min(ds * opts.grow, opts.ds_max)
+    log.debug("branch done: %d points, %s", len(points), counts)
     return points
