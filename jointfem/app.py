@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import dataclasses
 import logging
+import os
 import sys
 import time
 from dataclasses import dataclass
@@ -15,12 +16,12 @@ from pathlib import Path
 
 import numpy as np
 
-from .analysis.frf import SweepOptions, compute_frf
+from .analysis.frf import SweepIncomplete, SweepOptions, compute_frf
 from .continuation.arclength import ContinuationOptions, NewtonOptions
 from .defaults import default_samples
 from .harmonics import Harmonics
 from .models.structure import Structure
-from .results import FrequencyResponse, atomic_write
+from .results import FrequencyResponse, OutputError, atomic_write
 from .rom import RomOptions, build_rom
 from .rom.common import Reduction
 from .scene import Scene, SceneError, check_solvable, create_structure
@@ -66,11 +67,16 @@ class SceneSolution:
     frf: FrequencyResponse
     build_s: float
     rom: Reduction | None
+    incomplete: SweepIncomplete | None = None  # the sweep stopped early: frf holds the points before it
 
 
 def solve_scene(scene: Scene, *, progress: bool = False, method: str = "full",
-                rom_options: RomOptions = RomOptions(), stability: str = "auto") -> SceneSolution:
-    """Build the model of a scene (and its ROM) and compute its FRF (``stability``: auto, on, off)."""
+                rom_options: RomOptions = RomOptions(), stability: str = "auto",
+                keep_incomplete: bool = False) -> SceneSolution:
+    """Build the model of a scene (and its ROM) and compute its FRF (``stability``: auto, on, off).
+
+    A sweep that stops early (a stall, the time limit, Ctrl-C) raises SweepIncomplete, or, with
+    ``keep_incomplete``, returns its converged points with ``incomplete`` set."""
     check_solvable(scene)
     t0 = time.perf_counter()
     structure = create_structure(scene)
@@ -106,15 +112,32 @@ def solve_scene(scene: Scene, *, progress: bool = False, method: str = "full",
                 count[1] = now
 
     model = structure if rom is None else rom
+    incomplete = None
     try:
         if not s.harmonics_auto:
             frf = compute_frf(model, opts, callback=callback)
         else:
             frf = _auto_harmonics(scene, model, opts, callback)
+    except SweepIncomplete as exc:
+        if not keep_incomplete:
+            raise
+        frf, incomplete = exc.frf, exc
     finally:
         if bar is not None:
             bar.close()
-    return SceneSolution(structure, frf, t_build, rom)
+    return SceneSolution(structure, frf, t_build, rom, incomplete)
+
+
+def check_output(out: Path) -> None:
+    """Refuse, before any solve, an output folder that cannot be written (read-only, or a file in
+    its path), with one line (OutputError).  Nothing is created: a run that then fails early leaves
+    no folder behind."""
+    out = Path(out).absolute()
+    existing = next(p for p in (out, *out.parents) if p.exists())
+    if not existing.is_dir():
+        raise OutputError(f"cannot write the results to {out}/: {existing} is a file, not a folder")
+    if not os.access(existing, os.W_OK | os.X_OK):
+        raise OutputError(f"cannot write the results to {out}/: {existing} is not writable")
 
 
 def _auto_harmonics(scene: Scene, model, opts: SweepOptions, callback) -> FrequencyResponse:
@@ -185,6 +208,8 @@ def write_frf(solution: SceneSolution, scene: Scene, out: Path, *, method: str, 
         "model_timings_s": structure.info.get("timings", {}),
         "num_unknowns": frf.info["num_unknowns"],
         "omega_start_rad_s": scene.solver.omega_start, "omega_end_rad_s": scene.solver.omega_end,
+        "status": frf.info.get("status", "complete"),
+        **({"stop_reason": frf.info["stop_reason"]} if "stop_reason" in frf.info else {}),
         "wall_s": {"build": solution.build_s, "setup": frf.info["time_setup_s"],
                    "continuation": frf.info["time_online_s"],
                    "total": t_end - (wall_start if wall_start is not None else t_end)},

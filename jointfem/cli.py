@@ -34,12 +34,19 @@ def cmd_frf(args) -> int:
     t0 = time.perf_counter()
     root = parallel.is_root()
     options = _rom_options(args)
+    if root:
+        app.check_output(out)  # before any solve
     solution = app.solve_scene(scene, progress=not args.quiet and root, method=args.method, rom_options=options,
-                               stability=args.stability)
+                               stability=args.stability, keep_incomplete=True)
     if not root:  # every rank solved the same replicated problem; rank 0 writes it once
         return 0
     summary = app.write_frf(solution, scene, out, method=args.method, rom_options=options,
                             mpi_ranks=parallel.size(), wall_start=t0, plots=args.plots)
+    if solution.incomplete is not None:
+        stop = solution.incomplete
+        print(f"jointfem: sweep incomplete: {stop}. The {summary['num_points']} converged points are in {out}/ "
+              f"(summary.json status \"incomplete\")", file=sys.stderr)
+        return 130 if stop.interrupted else 3
     if not args.quiet:
         for name, pk in summary["peaks"].items():
             print(f"{name}: peak {pk['amp1_m']:.6e} m at {pk['omega_rad_s']:.6f} rad/s ({pk['freq_Hz']:.4f} Hz)")
@@ -132,6 +139,9 @@ def main(argv=None) -> int:
     args = build_parser().parse_args(argv)
     try:
         return args.func(args)
+    except KeyboardInterrupt:  # outside a sweep (a sweep keeps its points and returns 130 itself)
+        print("jointfem: interrupted (Ctrl-C)", file=sys.stderr)
+        return 130
     except (SceneError, ConvergenceError, ContinuationError, ContactError, OutputError, RomError,
             LinAlgError, ContinuumError) as exc:
         print(f"jointfem: error: {exc}", file=sys.stderr)

@@ -1,6 +1,7 @@
 """``jointfem frf`` writes files a user can open, with the promised contents."""
 import csv
 import json
+import re
 import subprocess
 import sys
 
@@ -122,3 +123,91 @@ def test_compare_writes_table_and_plots(tmp_path):
     assert "| cb:10 |" in (out / "compare.md").read_text()
     for png in ("compare_frf.png", "compare_pareto.png"):
         assert (out / png).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and (out / png).stat().st_size > 10_000
+
+
+def _sdof_scene(tmp_path, solver_extra: str) -> "Path":
+    text = (ROOT / "demos" / "sdof_jenkins.toml").read_text()
+    text = text.replace("samples = 256\n", "samples = 256\n" + solver_extra)
+    p = tmp_path / "sdof.toml"
+    p.write_text(text)
+    return p
+
+
+def test_a_sweep_that_stops_keeps_its_points(tmp_path):
+    """A budget reached (here max_points = 12) writes the converged points with status incomplete
+    and the reason in summary.json, and exits 3 with one line that names the folder."""
+    scene = _sdof_scene(tmp_path, "max_points = 12\n")
+    out = tmp_path / "out"
+    r = subprocess.run([sys.executable, "-m", "jointfem", "frf", str(scene), "--out", str(out), "--quiet"],
+                       capture_output=True, text=True)
+    assert r.returncode == 3, r.stderr
+    assert r.stderr.count("\n") == 1 and "sweep incomplete" in r.stderr and str(out) in r.stderr
+    assert "max_points = 12" in r.stderr and "Traceback" not in r.stderr
+    s = json.loads((out / "summary.json").read_text())
+    assert s["status"] == "incomplete" and "max_points = 12 reached" in s["stop_reason"]
+    assert s["num_points"] == 12
+    with open(out / "frf.csv") as fh:
+        rows = list(csv.reader(fh))[1:]
+    assert len(rows) == 12 and float(rows[0][0]) == 0.5 and float(rows[-1][0]) < 2.0
+    b = load_branch(out / "branch.npz")
+    assert b["U"].shape[0] == 12 and np.isfinite(b["U"]).all()
+
+
+def test_a_complete_sweep_says_so(tmp_path):
+    out = tmp_path / "out"
+    r = subprocess.run([sys.executable, "-m", "jointfem", "frf", str(ROOT / "demos" / "sdof_jenkins.toml"),
+                        "--out", str(out), "--quiet", "--harmonics", "3", "--samples", "64"],
+                       capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    s = json.loads((out / "summary.json").read_text())
+    assert s["status"] == "complete" and "stop_reason" not in s
+    assert set(s["continuation"]) == {"refused_steps", "corners_passed", "redone_steps"}
+
+
+def test_ctrl_c_keeps_the_points_and_exits_130(tmp_path):
+    """SIGINT during a long sweep (tiny steps): exit 130, one line, and the folder holds the points
+    converged before it, marked incomplete."""
+    import signal
+    import threading
+    import time
+
+    scene = _sdof_scene(tmp_path, "ds_max = 1e-4\nds0 = 1e-4\nmax_points = 100000\n")
+    out = tmp_path / "out"
+    p = subprocess.Popen([sys.executable, "-m", "jointfem", "frf", str(scene), "--out", str(out)],
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    seen = []
+
+    def read():
+        while chunk := p.stderr.read1(4096):
+            seen.append(chunk)
+
+    reader = threading.Thread(target=read, daemon=True)
+    reader.start()
+    t0 = time.monotonic()
+    def points():
+        counts = re.findall(rb"points=(\d+)", b"".join(seen))
+        return int(counts[-1]) if counts else 0
+
+    while points() < 20 and p.poll() is None and time.monotonic() - t0 < 120:  # the sweep is under way
+        time.sleep(0.05)
+    assert p.poll() is None, b"".join(seen).decode()[-2000:]
+    p.send_signal(signal.SIGINT)
+    p.wait(timeout=60)
+    reader.join(timeout=10)
+    err = b"".join(seen).decode()
+    assert p.returncode == 130, err[-2000:]
+    assert "Traceback" not in err and "interrupted (Ctrl-C)" in err
+    s = json.loads((out / "summary.json").read_text())
+    assert s["status"] == "incomplete" and "interrupted" in s["stop_reason"] and s["num_points"] >= 20
+
+
+def test_unwritable_output_is_refused_before_solving(tmp_path):
+    """A file where the output folder should be: one line, exit 2, within the start-up time (no
+    sweep: the scene would take minutes)."""
+    blocker = tmp_path / "file"
+    blocker.write_text("not a folder")
+    scene = _sdof_scene(tmp_path, "ds_max = 1e-4\nds0 = 1e-4\nmax_points = 100000\n")
+    r = subprocess.run([sys.executable, "-m", "jointfem", "frf", str(scene), "--out", str(blocker / "out"),
+                        "--quiet"], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 2 and r.stderr.count("\n") == 1, r.stderr
+    assert "cannot write the results to" in r.stderr and "Traceback" not in r.stderr

@@ -130,3 +130,13 @@ def test_compare_refuses_auto_harmonics(tmp_path):
     with pytest.raises(SceneError, match=r"solver.harmonics.*one H"):
         compare_scene(load_scene(path), "penalty", RomOptions(modes=1), out=tmp_path / "out")
     assert not (tmp_path / "out").exists()
+
+
+def test_estimate_needs_three_harmonics():
+    """With H <= 2 the two top harmonics would include the fundamental, and the slipping SDOF
+    oscillator has no second harmonic (its law is symmetric): the estimate is 1 (not known to be
+    converged) rather than a false 0, stuck or slipping.  At H = 3 it is measured (0.14)."""
+    stuck, slip = create_lumped(sdof(0.2)), create_lumped(sdof(0.5))
+    for H in (1, 2):
+        assert _solve(stuck, H, 1.3)[1] == 1.0 and _solve(slip, H, 1.3)[1] == 1.0
+    assert 0.1 < _solve(slip, 3, 1.3)[1] < 0.2

@@ -8,7 +8,7 @@ from typing import Callable
 
 import numpy as np
 
-from ..continuation.arclength import ContinuationOptions, ContinuationPoint, continue_branch
+from ..continuation.arclength import ContinuationError, ContinuationOptions, ContinuationPoint, continue_branch
 from ..harmonics import Harmonics
 from ..hbm.forced import ForcedProblem
 from ..hbm.problem import Problem, newton_system
@@ -37,6 +37,15 @@ class SweepOptions:
     # warn when a point's harmonic truncation estimate (analysis.convergence) passes this: the
     # first harmonic then changes by about e^2 / 4 when H grows by 2 (SDOF Jenkins, measured)
     harmonic_tol: float = 0.05
+
+
+class SweepIncomplete(ContinuationError):
+    """A sweep that stopped before omega_end (a stall, a budget, Ctrl-C): ``frf`` holds the points
+    converged before it, with info["status"] = "incomplete" and info["stop_reason"]."""
+
+    def __init__(self, message: str, *, frf: FrequencyResponse, interrupted: bool = False):
+        super().__init__(message, points=[], interrupted=interrupted)
+        self.frf = frf
 
 
 def create_problem(model: Structure | Reduction, harmonics: Harmonics) -> Problem:
@@ -94,15 +103,22 @@ def compute_frf(model: Structure | Reduction, options: SweepOptions, *,
     U0 = problem.initial_guess(options.omega_start)
     t1 = time.perf_counter()
     steps = {}
-    points = continue_branch(newton_system(problem), U0, options.omega_start, options.omega_end, x_scale=scales.x,
-                             lam_scale=lam_scale, r_scale=scales.r, options=cont,
-                             callback=callback, extra=record, adapt=problem.adaptation, stats=steps)
+    stopped = None
+    try:
+        points = continue_branch(newton_system(problem), U0, options.omega_start, options.omega_end,
+                                 x_scale=scales.x, lam_scale=lam_scale, r_scale=scales.r, options=cont,
+                                 callback=callback, extra=record, adapt=problem.adaptation, stats=steps)
+    except ContinuationError as exc:
+        if len(exc.points) < 2:
+            raise
+        # the branch so far is a result: kept, marked incomplete, and raised with it below
+        points, stopped = exc.points, exc
     records = [p.extra for p in points]
     layout = problem.layout
     omega, X = np.array([p.lam for p in points]), np.array([p.x for p in points])
     residual = np.array([p.residual for p in points])
     peaks = {}
-    if options.locate_peaks:
+    if options.locate_peaks and not (stopped is not None and stopped.interrupted):  # Ctrl-C: no more solves
         peaks = locate_peaks(problem, X, omega, residual, records, layout.outputs, scales=scales,
                              lam_scale=lam_scale, newton=cont.newton)
     t_online = time.perf_counter() - t1
@@ -155,7 +171,10 @@ def compute_frf(model: Structure | Reduction, options: SweepOptions, *,
     if all(r.active is not None for r in records):
         # active internal variables per point (penalty ROM), in the order of the contact components
         info["arrays"]["active"] = np.array([r.active for r in records])
-    return FrequencyResponse(
+    info["status"] = "complete" if stopped is None else "incomplete"
+    if stopped is not None:
+        info["stop_reason"] = str(stopped).replace("lam = ", "omega [rad/s] = ").replace("lam_end", "omega_end")
+    frf = FrequencyResponse(
         omega=omega,
         U=X,
         iterations=np.array([p.iterations for p in points]),
@@ -163,3 +182,6 @@ def compute_frf(model: Structure | Reduction, options: SweepOptions, *,
         harmonics=h, num_dofs=q, outputs=dict(layout.outputs), dof_names=layout.dof_names,
         pair_names=layout.pair_names, info=info,
     )
+    if stopped is not None:  # (the continuation's lam is omega here)
+        raise SweepIncomplete(info["stop_reason"], frf=frf, interrupted=stopped.interrupted)
+    return frf

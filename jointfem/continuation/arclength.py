@@ -40,9 +40,10 @@ class ContinuationError(RuntimeError):
 
     ``points``: the points converged before it stopped (a caller may keep them)."""
 
-    def __init__(self, message: str, *, points: list | None = None):
+    def __init__(self, message: str, *, points: list | None = None, interrupted: bool = False):
         super().__init__(message)
         self.points = list(points or [])
+        self.interrupted = interrupted  # stopped by Ctrl-C (SIGINT)
 
 
 class Adaptive:
@@ -337,8 +338,8 @@ def continue_branch(fun: Callable, x0: np.ndarray, lam0: float, lam_end: float, 
 
     def stop(why: str):
         return ContinuationError(f"continuation stopped at lam = {mu * lam_scale:.9g} before reaching "
-                                 f"{lam_end:.9g}, after {len(points)} points and {counts['refused_steps']} refused steps: {why}",
-                                 points=points)
+                                 f"{lam_end:.9g}, after {len(points)} points and {counts['refused_steps']} "
+                                 f"refused steps: {why}", points=points)
 
     turned = []  # the tangent's turns (deg) of the steps refused for it at this point
 
@@ -447,70 +448,75 @@ def continue_branch(fun: Callable, x0: np.ndarray, lam0: float, lam_end: float, 
             return None
         return z0 + hi * d, t2
 
-    while (mu - mu_end) * direction < 0:
-        if len(points) >= opts.max_points:
-            raise stop(f"max_points = {opts.max_points} reached; the last solution is {np.max(np.abs(y)):.3g} "
-                       f"times its scale" + ("" if np.max(np.abs(y)) < 100 else " (growing without bound: an "
-                                             "undamped resonance that friction cannot hold?)"))
-        if opts.time_limit is not None and time.monotonic() - t_start > opts.time_limit:
-            raise stop(f"the time limit of {opts.time_limit:g} s was reached (time_limit)")
-        if adapt is not None and redo == 0:
-            x_new = adapt.before_step(y * x_scale, mu * lam_scale)
-            if x_new is not None:
-                y = x_new / x_scale
+    try:
+        while (mu - mu_end) * direction < 0:
+            if len(points) >= opts.max_points:
+                raise stop(f"max_points = {opts.max_points} reached; the last solution is {np.max(np.abs(y)):.3g} "
+                           f"times its scale" + ("" if np.max(np.abs(y)) < 100 else " (growing without bound: an "
+                                                 "undamped resonance that friction cannot hold?)"))
+            if opts.time_limit is not None and time.monotonic() - t_start > opts.time_limit:
+                raise stop(f"the time limit of {opts.time_limit:g} s was reached (time_limit)")
+            if adapt is not None and redo == 0:
+                x_new = adapt.before_step(y * x_scale, mu * lam_scale)
+                if x_new is not None:
+                    y = x_new / x_scale
+                    R, J, dl = g(y, mu)
+                    t, orient = _tangent(J, dl, t)
+            d = t
+            y_new, mu_new, it, res, t_new, orient_new, changed, failure = attempt(d, ds)
+            if failure is not None and opts.corner_steps and ds <= opts.corner_ds:
+                # a fold on a corner of the piecewise-smooth branch (a kink of the sampled law) within
+                # the step: step along the branch beyond it instead of shrinking towards it
+                found = beyond(t, ds)
+                if found is not None:
+                    base, d2 = found
+                    out = attempt(d2, ds, base)
+                    if out[7] is None:
+                        log.debug("corner passed at lam=%.6g: the branch turns by %.1f deg (%s)", mu * lam_scale,
+                                  np.rad2deg(np.arccos(np.clip(d2 @ t, -1, 1))), failure)
+                        d = d2
+                        y_new, mu_new, it, res, t_new, orient_new, changed, failure = out
+                        counts["corners_passed"] += not changed
+            if failure is None and changed:
                 R, J, dl = g(y, mu)
                 t, orient = _tangent(J, dl, t)
-        d = t
-        y_new, mu_new, it, res, t_new, orient_new, changed, failure = attempt(d, ds)
-        if failure is not None and opts.corner_steps and ds <= opts.corner_ds:
-            # a fold on a corner of the piecewise-smooth branch (a kink of the sampled law) within
-            # the step: step along the branch beyond it instead of shrinking towards it
-            found = beyond(t, ds)
-            if found is not None:
-                base, d2 = found
-                out = attempt(d2, ds, base)
-                if out[7] is None:
-                    log.debug("corner passed at lam=%.6g: the branch turns by %.1f deg (%s)", mu * lam_scale,
-                              np.rad2deg(np.arccos(np.clip(d2 @ t, -1, 1))), failure)
-                    d = d2
-                    y_new, mu_new, it, res, t_new, orient_new, changed, failure = out
-                    counts["corners_passed"] += not changed
-        if failure is None and changed:
-            R, J, dl = g(y, mu)
-            t, orient = _tangent(J, dl, t)
-            redo += 1
-            counts["redone_steps"] += 1
-            if redo > Adaptive.max_redo:
-                raise stop(f"the problem kept changing ({redo - 1} redone steps)")
-            continue
-        if failure is not None:
-            counts["refused_steps"] += 1
-            ds *= 0.5
-            log.debug("step rejected at lam=%.6g (%s); ds -> %.3g", mu * lam_scale, failure, ds)
-            if ds < opts.ds_min:
-                raise stop(f"the step fell below ds_min = {opts.ds_min:.1e}; last failure: {failure}")
-            continue
-        if opts.lam_bounds is not None and not opts.lam_bounds[0] <= mu_new * lam_scale <= opts.lam_bounds[1]:
-            raise stop(f"the branch left [{opts.lam_bounds[0]:.6g}, {opts.lam_bounds[1]:.6g}] at lam = "
-                       f"{mu_new * lam_scale:.9g}: it turned back at a fold and does not come back to lam_end")
-        redo = 0
-        turned.clear()
-        y, mu, t, orient = y_new, mu_new, t_new, orient_new
-        x = y * x_scale
-        points.append(ContinuationPoint(x, mu * lam_scale, it, ds, extra(x, mu * lam_scale) if extra else None,
-                                        residual=res))
-        log.debug("point %d at lam=%.9g: ds %.3g, %d iterations, |y| %.6g", len(points) - 1, mu * lam_scale, ds,
-                  it, float(np.linalg.norm(y)))
-        if callback:
-            callback(points[-1])
-        # Step control: grow after easy corrections, but keep the tangent turning at most
-        # ``target_turn_deg`` per step so that peaks and folds are resolved, not stepped over
-        # (measured from the direction stepped along, so a corner passed does not count).
-        turn = float(np.rad2deg(np.arccos(np.clip(d @ t, -1.0, 1.0))))
-        if turn > opts.target_turn_deg:
-            ds = max(ds * max(opts.target_turn_deg / turn, 0.25), opts.ds_min)
-        elif it <= opts.target_iter or (opts.secant_on_kinks and res > opts.newton.tol):
-            # (a corrector stalled on a kink takes stall_iter iterations whatever the step)
-            ds = min(ds * opts.grow, opts.ds_max)
+                redo += 1
+                counts["redone_steps"] += 1
+                if redo > Adaptive.max_redo:
+                    raise stop(f"the problem kept changing ({redo - 1} redone steps)")
+                continue
+            if failure is not None:
+                counts["refused_steps"] += 1
+                ds *= 0.5
+                log.debug("step rejected at lam=%.6g (%s); ds -> %.3g", mu * lam_scale, failure, ds)
+                if ds < opts.ds_min:
+                    raise stop(f"the step fell below ds_min = {opts.ds_min:.1e}; last failure: {failure}")
+                continue
+            if opts.lam_bounds is not None and not opts.lam_bounds[0] <= mu_new * lam_scale <= opts.lam_bounds[1]:
+                raise stop(f"the branch left [{opts.lam_bounds[0]:.6g}, {opts.lam_bounds[1]:.6g}] at lam = "
+                           f"{mu_new * lam_scale:.9g}: it turned back at a fold and does not come back to lam_end")
+            redo = 0
+            turned.clear()
+            y, mu, t, orient = y_new, mu_new, t_new, orient_new
+            x = y * x_scale
+            points.append(ContinuationPoint(x, mu * lam_scale, it, ds, extra(x, mu * lam_scale) if extra else None,
+                                            residual=res))
+            log.debug("point %d at lam=%.9g: ds %.3g, %d iterations, |y| %.6g", len(points) - 1, mu * lam_scale, ds,
+                      it, float(np.linalg.norm(y)))
+            if callback:
+                callback(points[-1])
+            # Step control: grow after easy corrections, but keep the tangent turning at most
+            # ``target_turn_deg`` per step so that peaks and folds are resolved, not stepped over
+            # (measured from the direction stepped along, so a corner passed does not count).
+            turn = float(np.rad2deg(np.arccos(np.clip(d @ t, -1.0, 1.0))))
+            if turn > opts.target_turn_deg:
+                ds = max(ds * max(opts.target_turn_deg / turn, 0.25), opts.ds_min)
+            elif it <= opts.target_iter or (opts.secant_on_kinks and res > opts.newton.tol):
+                # (a corrector stalled on a kink takes stall_iter iterations whatever the step)
+                ds = min(ds * opts.grow, opts.ds_max)
+    except KeyboardInterrupt:
+        # Ctrl-C: the points converged so far are kept, as for any other stop
+        raise ContinuationError(f"continuation interrupted (Ctrl-C) at lam = {points[-1].lam:.9g} after "
+                                f"{len(points)} points", points=points, interrupted=True) from None
     log.debug("branch done: %d points, %s", len(points), counts)
     return points
