@@ -7,6 +7,7 @@ parses arguments and prints.
 from __future__ import annotations
 
 import dataclasses
+import json
 import logging
 import os
 import sys
@@ -16,12 +17,12 @@ from pathlib import Path
 
 import numpy as np
 
-from .analysis.frf import SweepIncomplete, SweepOptions, compute_frf
+from .analysis.frf import Resume, SweepIncomplete, SweepOptions, compute_frf
 from .continuation.arclength import ContinuationOptions, NewtonOptions
 from .defaults import default_samples
 from .harmonics import Harmonics
 from .models.structure import Structure
-from .results import FrequencyResponse, OutputError, atomic_write
+from .results import FrequencyResponse, OutputError, atomic_write, load_branch
 from .rom import RomOptions, build_rom
 from .rom.common import Reduction
 from .scene import Scene, SceneError, check_solvable, create_structure
@@ -72,11 +73,12 @@ class SceneSolution:
 
 def solve_scene(scene: Scene, *, progress: bool = False, method: str = "full",
                 rom_options: RomOptions = RomOptions(), stability: str = "auto",
-                keep_incomplete: bool = False) -> SceneSolution:
+                keep_incomplete: bool = False, resume: Resume | None = None) -> SceneSolution:
     """Build the model of a scene (and its ROM) and compute its FRF (``stability``: auto, on, off).
 
     A sweep that stops early (a stall, the time limit, Ctrl-C) raises SweepIncomplete, or, with
-    ``keep_incomplete``, returns its converged points with ``incomplete`` set."""
+    ``keep_incomplete``, returns its converged points with ``incomplete`` set.  ``resume`` (from
+    load_resume) goes on with a branch that stopped."""
     check_solvable(scene)
     t0 = time.perf_counter()
     structure = create_structure(scene)
@@ -114,8 +116,8 @@ def solve_scene(scene: Scene, *, progress: bool = False, method: str = "full",
     model = structure if rom is None else rom
     incomplete = None
     try:
-        if not s.harmonics_auto:
-            frf = compute_frf(model, opts, callback=callback)
+        if not s.harmonics_auto or resume is not None:
+            frf = compute_frf(model, opts, callback=callback, resume=resume)
         else:
             frf = _auto_harmonics(scene, model, opts, callback)
     except SweepIncomplete as exc:
@@ -126,6 +128,43 @@ def solve_scene(scene: Scene, *, progress: bool = False, method: str = "full",
         if bar is not None:
             bar.close()
     return SceneSolution(structure, frf, t_build, rom, incomplete)
+
+
+def load_resume(folder: Path, scene: Scene, method: str, rom_options: RomOptions) -> Resume:
+    """The branch of an incomplete sweep in ``folder``, checked to be this scene's with this method
+    (and H, N, ROM options); OutputError with one line otherwise."""
+    folder = Path(folder)
+    try:
+        summary = json.loads((folder / "summary.json").read_text())
+        b = load_branch(folder / "branch.npz")
+    except (OSError, ValueError) as exc:
+        raise OutputError(f"--resume {folder}: no result folder to resume ({exc})") from None
+    if summary.get("status") != "incomplete":
+        raise OutputError(f"--resume {folder}: its sweep is {summary.get('status', 'of an older jointfem')}, "
+                          f"not incomplete: nothing to resume")
+    rom = summary.get("rom", {})
+
+    def problem_of(data):  # the run's budgets are not part of the problem
+        data = json.loads(json.dumps(data or {}))
+        for key in ("max_points", "time_limit"):
+            data.get("solver", {}).pop(key, None)
+        return data
+
+    mine = {"scene": problem_of(scene.data), "method": method, "harmonics": scene.solver.harmonics,
+            "samples": scene.solver.samples}
+    theirs = {"scene": problem_of(summary.get("scene_data")), "method": summary.get("method"),
+              "harmonics": summary.get("harmonics"), "samples": summary.get("samples")}
+    if method != "full":
+        mine.update(modes=rom_options.modes, tvd=rom_options.tvd)
+        theirs.update(modes=rom.get("modes"), tvd=rom.get("tvd"))
+    differ = [k for k in mine if mine[k] != theirs[k]]
+    if differ:
+        raise OutputError(f"--resume {folder}: it was solved with another {', '.join(differ)} "
+                          f"({', '.join(f'{k} = {theirs[k]!r}' for k in differ if k != 'scene') or 'scene data'})")
+    if "ds_next" not in b:
+        raise OutputError(f"--resume {folder}: written by an older jointfem (no ds_next in branch.npz)")
+    return Resume(omega=b["omega"], U=b["U"], iterations=b["iterations"], residual=b["residual"],
+                  ds_next=float(b["ds_next"][-1]))
 
 
 def check_output(out: Path) -> None:

@@ -34,10 +34,14 @@ def cmd_frf(args) -> int:
     t0 = time.perf_counter()
     root = parallel.is_root()
     options = _rom_options(args)
+    resume = None
+    if args.resume:
+        out = Path(args.out) if args.out else Path(args.resume)
+        resume = app.load_resume(Path(args.resume), scene, args.method, options)
     if root:
         app.check_output(out)  # before any solve
     solution = app.solve_scene(scene, progress=not args.quiet and root, method=args.method, rom_options=options,
-                               stability=args.stability, keep_incomplete=True)
+                               stability=args.stability, keep_incomplete=True, resume=resume)
     if not root:  # every rank solved the same replicated problem; rank 0 writes it once
         return 0
     summary = app.write_frf(solution, scene, out, method=args.method, rom_options=options,
@@ -104,6 +108,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help=f"trial-vector derivatives (penalty, tvd; default {defaults.ROM_TVD})")
     f.add_argument("--quiet", action="store_true", help="no progress bar or summary")
     f.add_argument("--plots", action="store_true", help="also the contact-state pictures (as `jointfem plot`)")
+    f.add_argument("--resume", metavar="DIR", help="go on with the incomplete sweep in DIR (same scene, method, H, N), "
+                   "from its last point with the step it would have taken; writes the whole branch to --out "
+                   "(default DIR)")
     _stability_arg(f)
     f.set_defaults(func=cmd_frf)
     pp = sub.add_parser("plot", help="contact-state pictures of a result folder (PNG, off-screen)")

@@ -211,3 +211,35 @@ def test_unwritable_output_is_refused_before_solving(tmp_path):
                         "--quiet"], capture_output=True, text=True, timeout=120)
     assert r.returncode == 2 and r.stderr.count("\n") == 1, r.stderr
     assert "cannot write the results to" in r.stderr and "Traceback" not in r.stderr
+
+
+def test_resume_continues_the_same_branch(tmp_path):
+    """A sweep stopped by its budget (max_points = 12), resumed with --resume, ends with the same
+    branch as an uninterrupted run: the same points to 1e-8 (the continuation goes on with the step
+    it would have taken).  A folder of another method is refused with one line."""
+    stopped = _sdof_scene(tmp_path, "max_points = 12\n")
+    full = ROOT / "demos" / "sdof_jenkins.toml"
+    a, b = tmp_path / "a", tmp_path / "b"
+    r = subprocess.run([sys.executable, "-m", "jointfem", "frf", str(stopped), "--out", str(a), "--quiet"],
+                       capture_output=True, text=True)
+    assert r.returncode == 3, r.stderr
+    r = subprocess.run([sys.executable, "-m", "jointfem", "frf", str(full), "--resume", str(a), "--quiet"],
+                       capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    r = subprocess.run([sys.executable, "-m", "jointfem", "frf", str(full), "--out", str(b), "--quiet"],
+                       capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    ra, rb = load_branch(a / "branch.npz"), load_branch(b / "branch.npz")
+    assert json.loads((a / "summary.json").read_text())["status"] == "complete"
+    assert ra["omega"].size == rb["omega"].size > 12
+    np.testing.assert_allclose(ra["omega"], rb["omega"], rtol=1e-8, atol=0)
+    np.testing.assert_allclose(ra["U"], rb["U"], rtol=0, atol=1e-8 * np.abs(rb["U"]).max())
+    # refused: a complete folder, and an incomplete one of another method
+    r = subprocess.run([sys.executable, "-m", "jointfem", "frf", str(full), "--resume", str(b), "--quiet"],
+                       capture_output=True, text=True)
+    assert r.returncode == 2 and "not incomplete" in r.stderr and r.stderr.count("\n") == 1, r.stderr
+    subprocess.run([sys.executable, "-m", "jointfem", "frf", str(stopped), "--out", str(a), "--quiet"],
+                   capture_output=True, text=True)
+    r = subprocess.run([sys.executable, "-m", "jointfem", "frf", str(full), "--resume", str(a), "--quiet",
+                        "--method", "penalty", "--modes", "1"], capture_output=True, text=True)
+    assert r.returncode == 2 and "another method" in r.stderr and r.stderr.count("\n") == 1, r.stderr

@@ -58,12 +58,27 @@ def create_problem(model: Structure | Reduction, harmonics: Harmonics) -> Proble
     raise TypeError(f"compute_frf: expected a Structure or a reduced model, got {type(model).__name__}")
 
 
+@dataclass(frozen=True)
+class Resume:
+    """A branch that stopped (branch.npz of an incomplete sweep): its points and the step the
+    continuation would have taken from the last one."""
+
+    omega: np.ndarray  # rad/s, per point
+    U: np.ndarray  # (points, unknowns)
+    iterations: np.ndarray
+    residual: np.ndarray
+    ds_next: float
+
+
 def compute_frf(model: Structure | Reduction, options: SweepOptions, *,
-                callback: Callable[[ContinuationPoint], None] | None = None) -> FrequencyResponse:
+                callback: Callable[[ContinuationPoint], None] | None = None,
+                resume: Resume | None = None) -> FrequencyResponse:
     """Nonlinear FRF from the stuck linear solution at omega_start.
 
     ``model``: a Structure (full order), or what jointfem.rom.build_rom returns (a Galerkin ROM:
     CMS or tvd; the penalty ROM; the exact condensation on the contact gaps).
+    ``resume``: go on with a branch that stopped, from its last point, with the step it would have
+    taken (the result holds its points and the new ones).
     """
     h = options.harmonics
     t0 = time.perf_counter()
@@ -100,19 +115,30 @@ def compute_frf(model: Structure | Reduction, options: SweepOptions, *,
         # a forced response never passes through zero: a step that flips its sign went through an
         # unbounded (undamped) resonance or onto another branch, and is refused however short
         cont = replace(cont, max_rel_change=1.0)
-    U0 = problem.initial_guess(options.omega_start)
+    U0, omega0, before, heading = problem.initial_guess(options.omega_start), options.omega_start, [], None
+    if resume is not None:
+        if resume.U.shape[1] != problem.num_unknowns or resume.omega.size < 2:
+            raise ValueError(f"resume: a branch of {resume.U.shape[1]} unknowns and {resume.omega.size} points "
+                             f"cannot go on in a problem of {problem.num_unknowns} unknowns")
+        U0, omega0 = resume.U[-1], float(resume.omega[-1])
+        heading = (resume.U[-1] - resume.U[-2], resume.omega[-1] - resume.omega[-2]), resume.ds_next
+        before = [ContinuationPoint(resume.U[i], float(resume.omega[i]), int(resume.iterations[i]), 0.0,
+                                    record(resume.U[i], float(resume.omega[i])), residual=float(resume.residual[i]))
+                  for i in range(resume.omega.size - 1)]
     t1 = time.perf_counter()
     steps = {}
     stopped = None
     try:
-        points = continue_branch(newton_system(problem), U0, options.omega_start, options.omega_end,
+        points = continue_branch(newton_system(problem), U0, omega0, options.omega_end,
                                  x_scale=scales.x, lam_scale=lam_scale, r_scale=scales.r, options=cont,
-                                 callback=callback, extra=record, adapt=problem.adaptation, stats=steps)
+                                 callback=callback, extra=record, adapt=problem.adaptation, stats=steps,
+                                 resume=heading)
     except ContinuationError as exc:
-        if len(exc.points) < 2:
+        if len(before) + len(exc.points) < 2:
             raise
         # the branch so far is a result: kept, marked incomplete, and raised with it below
         points, stopped = exc.points, exc
+    points = before + points
     records = [p.extra for p in points]
     layout = problem.layout
     omega, X = np.array([p.lam for p in points]), np.array([p.x for p in points])
@@ -127,6 +153,8 @@ def compute_frf(model: Structure | Reduction, options: SweepOptions, *,
             # achieved max|R| / max|F| per point: below the Newton tol, or below kink_tol where a
             # root on a kink of the sampled law stalled Newton (docs/theory.md)
             "arrays": {"residual": residual,
+                       # the step the continuation takes from each point (compute_frf's ``resume``)
+                       "ds_next": np.array([p.ds_next for p in points]),
                        "rom_size": np.array([r.size for r in records]),
                        # per point and pair: dissipated energy per cycle (J), tangential relative
                        # displacement amplitude (m), peak normal force (N); ContactLaw.summary

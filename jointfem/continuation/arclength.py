@@ -239,6 +239,7 @@ class ContinuationPoint:
     ds: float
     extra: object = None
     residual: float = 0.0  # achieved max|R|/r_scale
+    ds_next: float = 0.0  # the step the continuation takes from this point (to resume it exactly)
 
 
 def _corrector(g, y_p, mu_p, t, opts: NewtonOptions, lam_scale: float = 1.0):
@@ -292,7 +293,8 @@ def continue_branch(fun: Callable, x0: np.ndarray, lam0: float, lam_end: float, 
                     r_scale: float, options: ContinuationOptions = ContinuationOptions(),
                     callback: Callable[[ContinuationPoint], None] | None = None,
                     extra: Callable[[np.ndarray, float], object] | None = None,
-                    adapt: Adaptive | None = None, stats: dict | None = None) -> list[ContinuationPoint]:
+                    adapt: Adaptive | None = None, stats: dict | None = None,
+                    resume: tuple[np.ndarray, float] | None = None) -> list[ContinuationPoint]:
     """Follow R(x, lam) = 0 from (x0, lam0) until lam passes lam_end (either direction).
 
     fun(x, lam) -> (R, dR/dx, dR/dlam).  x0 is an initial guess at lam0 (refined by Newton).
@@ -300,6 +302,10 @@ def continue_branch(fun: Callable, x0: np.ndarray, lam0: float, lam_end: float, 
     ``adapt``: hooks of a problem that changes along the branch (see Adaptive).
     ``stats``: a dict filled (also when it stops) with the counts of refused steps, corners
     passed and steps redone because the problem changed.
+    ``resume``: (direction, ds) to continue a branch that stopped at (x0, lam0): the direction
+    (dx, dlam) it was heading in there (the secant of its last step will do: it orients the
+    tangent) and the step it would have taken (ContinuationPoint.ds_next), so that the branch goes
+    on as if it had not stopped.
     """
     opts = options
     x_scale = np.broadcast_to(np.asarray(x_scale, float), np.shape(x0)).copy()
@@ -322,13 +328,19 @@ def continue_branch(fun: Callable, x0: np.ndarray, lam0: float, lam_end: float, 
                                 residual=float(np.max(np.abs(R))))]
     if callback:
         callback(points[-1])
-    e_lam = np.zeros(y.size + 1)
-    e_lam[-1] = direction
-    t, _ = _tangent(J, dl, e_lam)
-    if t[-1] * direction < 0:
-        t = -t
+    if resume is None:
+        e_lam = np.zeros(y.size + 1)
+        e_lam[-1] = direction
+        t, _ = _tangent(J, dl, e_lam)
+        if t[-1] * direction < 0:
+            t = -t
+        ds = opts.ds0
+    else:
+        heading = np.append(np.asarray(resume[0][0]) / x_scale, resume[0][1] / lam_scale)
+        t, _ = _tangent(J, dl, heading / np.linalg.norm(heading))
+        ds = float(np.clip(resume[1], opts.ds_min, opts.ds_max))
     t, orient = _tangent(J, dl, t)
-    ds = opts.ds0
+    points[-1].ds_next = ds
     cos_max = np.cos(np.deg2rad(opts.max_turn_deg))
     cos_rev = -np.cos(np.deg2rad(opts.max_reversal_deg))
     redo = 0
@@ -514,6 +526,7 @@ def continue_branch(fun: Callable, x0: np.ndarray, lam0: float, lam_end: float, 
             elif it <= opts.target_iter or (opts.secant_on_kinks and res > opts.newton.tol):
                 # (a corrector stalled on a kink takes stall_iter iterations whatever the step)
                 ds = min(ds * opts.grow, opts.ds_max)
+            points[-1].ds_next = ds
     except KeyboardInterrupt:
         # Ctrl-C: the points converged so far are kept, as for any other stop
         raise ContinuationError(f"continuation interrupted (Ctrl-C) at lam = {points[-1].lam:.9g} after "
