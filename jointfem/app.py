@@ -16,6 +16,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+import scipy.sparse as sp
 
 from .analysis.frf import Resume, SweepIncomplete, SweepOptions, compute_frf
 from .continuation.arclength import ContinuationOptions, NewtonOptions
@@ -71,6 +72,45 @@ class SceneSolution:
     incomplete: SweepIncomplete | None = None  # the sweep stopped early: frf holds the points before it
 
 
+def memory_estimate(structure: Structure, harmonics: Harmonics) -> float:
+    """Bytes a sweep holds at least: the AFT's transform pair (N x (2H+1), twice), every contact
+    pair's Jacobian block (per pair (m (2H+1))^2), and the linear operator (nnz(K, M, D) per
+    harmonic block, four times)."""
+    nh, N = harmonics.num_hc, harmonics.N
+    nnz = sum(sp_nnz(A) for A in (structure.K, structure.M, structure.D))
+    pairs = sum(g.pairs.num_pairs * (g.pairs.num_comp * nh) ** 2 for g in structure.contacts)
+    return 8.0 * (2 * N * nh + pairs + 4 * nnz * nh) + 12.0 * 4 * nnz * nh
+
+
+def sp_nnz(A) -> int:
+    return int(A.nnz) if sp.issparse(A) else int(np.count_nonzero(A))
+
+
+def check_resources(scene: Scene, structure: Structure) -> None:
+    """Refuse, with one line and the estimate, a sweep whose arrays would not fit in half of this
+    machine's memory (``--harmonics 100000`` asked for 298 GiB before it failed)."""
+    h = Harmonics(scene.solver.harmonics_max if scene.solver.harmonics_auto else scene.solver.harmonics,
+                  scene.solver.samples if scene.solver.samples_given or not scene.solver.harmonics_auto
+                  else default_samples(scene.solver.harmonics_max))
+    need = memory_estimate(structure, h)
+    total = _memory_total()
+    if total and need > 0.5 * total:
+        raise SceneError(scene.path, "solver.harmonics", h.H,
+                         f"with N = {h.N} samples and {structure.num_dofs} DOFs a sweep needs at least "
+                         f"{need / 2**30:.1f} GiB, more than half of this machine's {total / 2**30:.1f} GiB")
+
+
+def _memory_total() -> float:
+    try:
+        with open("/proc/meminfo") as fh:
+            for line in fh:
+                if line.startswith("MemTotal"):
+                    return float(line.split()[1]) * 1024
+    except OSError:
+        pass
+    return 0.0
+
+
 def solve_scene(scene: Scene, *, progress: bool = False, method: str = "full",
                 rom_options: RomOptions = RomOptions(), stability: str = "auto",
                 keep_incomplete: bool = False, resume: Resume | None = None) -> SceneSolution:
@@ -82,6 +122,7 @@ def solve_scene(scene: Scene, *, progress: bool = False, method: str = "full",
     check_solvable(scene)
     t0 = time.perf_counter()
     structure = create_structure(scene)
+    check_resources(scene, structure)
     rom = None if method == "full" else build_rom(structure, method, rom_options)
     t_build = time.perf_counter() - t0
     s = scene.solver
@@ -165,6 +206,45 @@ def load_resume(folder: Path, scene: Scene, method: str, rom_options: RomOptions
         raise OutputError(f"--resume {folder}: written by an older jointfem (no ds_next in branch.npz)")
     return Resume(omega=b["omega"], U=b["U"], iterations=b["iterations"], residual=b["residual"],
                   ds_next=float(b["ds_next"][-1]))
+
+
+# files a run of `jointfem frf` (and `jointfem plot`) writes into its folder
+OWNED = ("frf.csv", "branch.npz", "summary.json", "shape.npz", "frf.png", "states_branch.png", "interface_*.png",
+         "shape_*.png")
+
+
+def remove_stale(out: Path) -> list[Path]:
+    """Remove from a result folder the files an earlier run wrote there (OWNED), so that no picture
+    of another scene survives a new run into the same folder; other files are left alone."""
+    out = Path(out)
+    if not (out / "summary.json").is_file():
+        return []
+    gone = [p for pattern in OWNED for p in out.glob(pattern) if p.is_file()]
+    for p in gone:
+        p.unlink()
+    return gone
+
+
+def software() -> dict:
+    """The versions a result was computed with, and the commit of a git checkout of jointfem."""
+    import platform
+    import subprocess
+
+    import scipy
+
+    from . import __version__
+
+    out = {"jointfem": __version__, "python": platform.python_version(), "numpy": np.__version__,
+           "scipy": scipy.__version__}
+    try:
+        root = Path(__file__).resolve().parents[1]
+        r = subprocess.run(["git", "describe", "--always", "--dirty"], cwd=root, capture_output=True, text=True,
+                           timeout=10)
+        if r.returncode == 0:
+            out["commit"] = r.stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        pass
+    return out
 
 
 def check_output(out: Path) -> None:
@@ -253,6 +333,8 @@ def write_frf(solution: SceneSolution, scene: Scene, out: Path, *, method: str, 
                    "continuation": frf.info["time_online_s"],
                    "total": t_end - (wall_start if wall_start is not None else t_end)},
     }
+    summary["software"] = software()
+    remove_stale(out)
     summary = save_frf(frf, out, summary=summary)
     save_shape(structure, rom, out)
     plot_frf(frf, out / "frf.png", title=f"{scene.name} ({method}, H={frf.harmonics.H})")

@@ -96,12 +96,22 @@ def _check_finite(name: str, a: np.ndarray):
         raise OutputError(f"{name} holds a non-finite value at index {tuple(int(i) for i in idx)}; nothing written")
 
 
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
 def atomic_write(path: Path, write):
+    """Write ``path`` through a temporary file in its folder, renamed into place once complete (a
+    run stopped half-way leaves the old file or none).  The file gets the permissions of any file
+    the user creates (0666 less the umask; mkstemp alone gives 0600)."""
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=path.suffix)
     os.close(fd)
     try:
         write(tmp)
+        os.chmod(tmp, 0o666 & ~_umask())
         os.replace(tmp, path)
     except BaseException:
         if os.path.exists(tmp):

@@ -203,10 +203,12 @@ def _solver(t: _Table) -> SolverSpec:
     N = t.integer("samples", default_samples(H_max if auto else H))
     if N < 2 * (H_max if auto else H) + 1:
         t.fail("samples", N, f"must be >= 2*{'harmonics_max' if auto else 'harmonics'}+1 = {2 * (H_max if auto else H) + 1}")
+    ds_min, ds_max = t.number("ds_min", SolverSpec.ds_min, gt=0), t.number("ds_max", SolverSpec.ds_max, gt=0)
     spec = SolverSpec(
         omega_min=lo, omega_max=hi, direction=t.string("direction", "up", choices=("up", "down")),
-        harmonics=H, samples=N, ds0=t.number("ds0", SolverSpec.ds0, gt=0),
-        ds_min=t.number("ds_min", SolverSpec.ds_min, gt=0), ds_max=t.number("ds_max", SolverSpec.ds_max, gt=0),
+        harmonics=H, samples=N,
+        # a first step the scene does not give stays within the scene's [ds_min, ds_max]
+        ds0=t.number("ds0", min(max(SolverSpec.ds0, ds_min), ds_max), gt=0), ds_min=ds_min, ds_max=ds_max,
         tol=t.number("tol", SolverSpec.tol, gt=0), max_points=t.integer("max_points", SolverSpec.max_points, ge=2),
         kink_tol=t.number("kink_tol", SolverSpec.kink_tol, gt=0),
         time_limit=t.number("time_limit", SolverSpec.time_limit, gt=0), harmonics_auto=auto, harmonic_target=target,
@@ -382,8 +384,11 @@ def _continuum(top: _Table, kind: str, path):
     structured = m.raw("structured", True)
     if not isinstance(structured, bool):
         m.fail("structured", structured, "must be true or false")
+    mesh_file = m.string("file", None)
+    if mesh_file is not None and not Path(mesh_file).is_absolute() and Path(str(path)).is_file():
+        mesh_file = str((Path(str(path)).resolve().parent / mesh_file).resolve())  # relative to the scene file
     mesh = dict(size=size, size_normal=size_normal, degree=m.integer("degree", 2, ge=1),
-                mesh_file=m.string("file", None), structured=structured)
+                mesh_file=mesh_file, structured=structured)
     if mesh["degree"] > 2:
         m.fail("degree", mesh["degree"], "must be 1 or 2")
     if not structured and dim == 3 and mesh["degree"] == 2:
@@ -459,6 +464,8 @@ def load_scene(path) -> Scene:
         text = path.read_text()
     except OSError as exc:
         raise SceneError(path, "(file)", str(path), f"cannot be read: {exc.strerror or exc}") from None
+    except UnicodeDecodeError:
+        raise SceneError(path, "(file)", str(path), "is not a text file: a scene is TOML (UTF-8)") from None
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:

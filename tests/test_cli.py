@@ -243,3 +243,31 @@ def test_resume_continues_the_same_branch(tmp_path):
     r = subprocess.run([sys.executable, "-m", "jointfem", "frf", str(full), "--resume", str(a), "--quiet",
                         "--method", "penalty", "--modes", "1"], capture_output=True, text=True)
     assert r.returncode == 2 and "another method" in r.stderr and r.stderr.count("\n") == 1, r.stderr
+
+
+def test_output_files_permissions_versions_and_no_stale_pictures(tmp_path):
+    """Files get the umask's permissions (mkstemp alone gave 0600 to frf.csv, branch.npz and
+    summary.json); summary.json names the software; a second run into the folder removes the
+    pictures the first wrote (another scene's interface_*.png survived before) and leaves other
+    files alone."""
+    import os
+    import stat
+
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "interface_3.png").write_bytes(b"old")
+    (out / "summary.json").write_text("{}")
+    (out / "notes.txt").write_text("mine")
+    old = os.umask(0o022)
+    try:
+        r = subprocess.run([sys.executable, "-m", "jointfem", "frf", str(ROOT / "demos" / "sdof_jenkins.toml"),
+                            "--out", str(out), "--quiet", "--harmonics", "3", "--samples", "64"],
+                           capture_output=True, text=True)
+    finally:
+        os.umask(old)
+    assert r.returncode == 0, r.stderr
+    for name in ("frf.csv", "branch.npz", "summary.json", "frf.png"):
+        assert stat.S_IMODE((out / name).stat().st_mode) == 0o644, name
+    assert not (out / "interface_3.png").exists() and (out / "notes.txt").read_text() == "mine"
+    sw = json.loads((out / "summary.json").read_text())["software"]
+    assert sw["jointfem"] and sw["numpy"] == np.__version__ and "python" in sw

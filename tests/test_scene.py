@@ -96,3 +96,43 @@ def test_beam_scene_defaults_and_build():
     assert s.num_dofs == 2 * 21 * 3 - 6  # two beams of 20 elements, one clamped node each
     assert s.num_pairs == 3
     assert set(s.outputs) == {"b1.mid.uy", "b2.mid.uy"}
+
+
+def test_a_binary_file_as_scene_is_one_line(tmp_path):
+    png = tmp_path / "frf.png"
+    png.write_bytes(b"\x89PNG\r\n\x1a\n" + bytes(range(256)))
+    r = subprocess.run([sys.executable, "-m", "jointfem", "frf", str(png), "--out", str(tmp_path / "o")],
+                       capture_output=True, text=True)
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and "not a text file" in r.stderr, r.stderr
+
+
+def test_harmonics_beyond_memory_refused_with_the_estimate(tmp_path):
+    """--harmonics 100000 asked numpy for 298 GiB before it failed; now one line with the estimate,
+    before any allocation (the AFT's transforms alone: 2 N (2H+1) 8 bytes = 1490 GiB)."""
+    r = subprocess.run([sys.executable, "-m", "jointfem", "frf", str(ROOT / "demos" / "sdof_jenkins.toml"),
+                        "--harmonics", "100000", "--out", str(tmp_path / "o")], capture_output=True, text=True,
+                       timeout=120)
+    assert r.returncode == 2 and r.stderr.count("\n") == 1, r.stderr
+    assert "solver.harmonics = 100000" in r.stderr and "1490.2 GiB" in r.stderr
+    assert not (tmp_path / "o").exists()
+
+
+def test_mesh_file_is_relative_to_the_scene_file(tmp_path):
+    text = (ROOT / "demos" / "lap3d.toml").read_text()
+    (tmp_path / "sub").mkdir()
+    p = tmp_path / "sub" / "lap.toml"
+    p.write_text(text)
+    assert load_scene(p).model.mesh_file == str(tmp_path / "meshes" / "lap3d.msh")
+    assert load_scene(ROOT / "demos" / "lap3d.toml").model.mesh_file == str(ROOT / "meshes" / "lap3d.msh")
+
+
+def test_small_ds_max_needs_no_ds0(tmp_path):
+    """ds_max below the default first step (0.02) was refused on ds0, a key the user never set."""
+    text = (ROOT / "demos" / "sdof_jenkins.toml").read_text().replace("samples = 256\n", "samples = 256\nds_max = 0.005\n")
+    p = tmp_path / "s.toml"
+    p.write_text(text)
+    s = load_scene(p).solver
+    assert s.ds0 == 0.005 and s.ds_max == 0.005
+    p.write_text(text.replace("ds_max = 0.005\n", "ds_max = 0.005\nds0 = 0.01\n"))
+    with pytest.raises(SceneError, match="ds0 = 0.01"):
+        load_scene(p)

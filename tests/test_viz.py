@@ -58,7 +58,7 @@ def stick_slip(tmp_path_factory):
     text = (ROOT / "demos" / "lap3d.toml").read_text()
     text = (text.replace("size = 0.01 ", "size = 0.015 ").replace("samples = 256", "samples = 1024")
             .replace("kt_total = 3.0e4", "kt = 2.0e11").replace("pressure = 8.0e4", "pressure = 2.0e5")
-            .replace("amplitude = 1.0 ", "amplitude = 3.0 ").replace('file = "meshes/lap3d.msh"', ""))
+            .replace("amplitude = 1.0 ", "amplitude = 3.0 ").replace('file = "../meshes/lap3d.msh"', ""))
     d = tmp_path_factory.mktemp("viz")
     (d / "lap3d.toml").write_text(text)
     out = d / "out"
