@@ -9,9 +9,11 @@ from __future__ import annotations
 import dataclasses
 import json
 import logging
+import re
 import os
 import sys
 import time
+import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -26,7 +28,7 @@ from .models.structure import Structure
 from .results import FrequencyResponse, OutputError, atomic_write, load_branch
 from .rom import RomOptions, build_rom
 from .rom.common import Reduction
-from .scene import Scene, SceneError, check_solvable, create_structure
+from .scene import Scene, SceneError, check_solvable, create_structure, parse_scene
 
 log = logging.getLogger("jointfem")
 
@@ -44,6 +46,50 @@ def override_harmonics(scene: Scene, harmonics: int | None = None, samples: int 
     auto = s.harmonics_auto and harmonics is None  # --harmonics fixes H
     return dataclasses.replace(scene, solver=dataclasses.replace(
         s, harmonics=H, samples=N, harmonics_auto=auto, samples_given=s.samples_given or samples is not None))
+
+
+def override(scene: Scene, assignments: list[str]) -> Scene:
+    """The scene with ``key=value`` assignments applied (``--set``), re-validated as a whole.
+
+    A key is a dotted path into the scene file: ``force.amplitude``, ``solver.omega_range``,
+    ``jenkins[0].mu`` (or ``jenkins.0.mu``; ``force.amplitude`` where the scene has one
+    ``[[force]]``).  A value is TOML (``3.0``, ``[1600, 1700]``,
+    ``"down"``); anything that is not valid TOML is taken as a string."""
+    if not assignments:
+        return scene
+    data = json.loads(json.dumps(scene.data))
+    for item in assignments:
+        key, sep, text = item.partition("=")
+        key = key.strip()
+        if not sep or not key:
+            raise SceneError("--set", item, None, "must be key=value, e.g. force.amplitude=3.0")
+        try:
+            value = tomllib.loads(f"v = {text.strip()}")["v"]
+        except tomllib.TOMLDecodeError:
+            value = text.strip()
+        parts = [p for p in re.split(r"\.|\[(\d+)\]", key) if p]
+        node = data
+        for i, part in enumerate(parts[:-1]):
+            if isinstance(node, list) and len(node) == 1 and not part.isdigit():
+                node = node[0]  # an array of one table ([[force]]): force.amplitude means its only entry
+            if isinstance(node, list) and part.isdigit() and int(part) < len(node):
+                node = node[int(part)]
+            elif isinstance(node, dict) and part in node and isinstance(node[part], (dict, list)):
+                node = node[part]
+            elif isinstance(node, dict) and part not in node and not part.isdigit():
+                node = node.setdefault(part, {})
+            else:
+                raise SceneError("--set", key, text, f"{'.'.join(parts[:i + 1])} is not a table of the scene")
+        last = parts[-1]
+        if isinstance(node, list) and len(node) == 1 and not last.isdigit():
+            node = node[0]
+        if isinstance(node, list):
+            if not (last.isdigit() and int(last) < len(node)):
+                raise SceneError("--set", key, text, "no such entry")
+            node[int(last)] = value
+        else:
+            node[last] = value
+    return parse_scene(data, scene.path)
 
 
 STABILITY = {"auto": None, "on": True, "off": False}  # --stability

@@ -29,7 +29,7 @@ def _rom_options(args) -> RomOptions:
 def cmd_frf(args) -> int:
     from . import app, parallel
 
-    scene = app.override_harmonics(load_scene(args.scene), args.harmonics, args.samples)
+    scene = app.override_harmonics(app.override(load_scene(args.scene), args.set), args.harmonics, args.samples)
     out = Path(args.out) if args.out else Path("results") / scene.name
     t0 = time.perf_counter()
     root = parallel.is_root()
@@ -62,7 +62,7 @@ def cmd_frf(args) -> int:
 def cmd_compare(args) -> int:
     from . import app
 
-    scene = app.override_harmonics(load_scene(args.scene), args.harmonics, args.samples)
+    scene = app.override_harmonics(app.override(load_scene(args.scene), args.set), args.harmonics, args.samples)
     out = Path(args.out) if args.out else Path("results") / f"{scene.name}_compare"
 
     def progress(label):
@@ -85,6 +85,12 @@ def cmd_plot(args) -> int:
         for pic in pics:
             print(f"wrote {pic.path}")
     return 0
+
+
+def _set_arg(p) -> None:
+    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                   help="override a scene key (repeatable): force.amplitude=3.0, solver.omega_range=[1600,1700], "
+                        "jenkins[0].mu=0.2; the scene is validated again as a whole")
 
 
 def _stability_arg(p) -> None:
@@ -112,6 +118,7 @@ def build_parser() -> argparse.ArgumentParser:
                    "from its last point with the step it would have taken; writes the whole branch to --out "
                    "(default DIR)")
     _stability_arg(f)
+    _set_arg(f)
     f.set_defaults(func=cmd_frf)
     pp = sub.add_parser("plot", help="contact-state pictures of a result folder (PNG, off-screen)")
     pp.add_argument("folder", help="a folder written by `jointfem frf`")
@@ -137,6 +144,7 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--samples", type=int, help="AFT time samples N >= 2H+1 (overrides the scene)")
     c.add_argument("--quiet", action="store_true", help="no progress or table on the terminal")
     _stability_arg(c)
+    _set_arg(c)
     c.set_defaults(func=cmd_compare)
     return p
 

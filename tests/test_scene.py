@@ -1,5 +1,6 @@
 """Scene files: every class of bad input gives one clear line naming file, key and value,
 before any computation, and the CLI writes nothing."""
+import re
 import subprocess
 import sys
 
@@ -136,3 +137,20 @@ def test_small_ds_max_needs_no_ds0(tmp_path):
     p.write_text(text.replace("ds_max = 0.005\n", "ds_max = 0.005\nds0 = 0.01\n"))
     with pytest.raises(SceneError, match="ds0 = 0.01"):
         load_scene(p)
+
+
+def test_set_overrides_any_key_and_validates_again():
+    from jointfem.app import override
+
+    base = load_scene(ROOT / "demos" / "sdof_jenkins.toml")
+    s = override(base, ["force.amplitude=0.5", "solver.omega_range=[1.0, 1.6]", "jenkins[0].mu=0.8",
+                        "solver.direction=down"])
+    assert s.model.forces[0].amplitude == 0.5 and (s.solver.omega_min, s.solver.omega_max) == (1.0, 1.6)
+    assert s.model.jenkins[0].mu == 0.8 and s.solver.direction == "down"
+    assert base.model.forces[0].amplitude == 0.2  # the original scene is untouched
+    for bad, words in (("force.amplitud=0.5", "force[0].amplitud = 0.5: unknown key"),
+                       ("jenkins[3].mu=0.5", "jenkins.3 is not a table"),
+                       ("jenkins[0].mu=-1", "jenkins[0].mu = -1: must be >= 0"),
+                       ("force", "must be key=value")):
+        with pytest.raises(SceneError, match=re.escape(words)):
+            override(base, [bad])
