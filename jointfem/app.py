@@ -157,6 +157,39 @@ def _memory_total() -> float:
     return 0.0
 
 
+def check_forced_resonances(scene: Scene, structure: Structure, max_dofs: int = 2000) -> None:
+    """Refuse, with one line, a forced undamped resonance in the sweep's range that nothing can
+    bound: a stuck mode with omega in omega_range, no viscous damping, a share of the force, and no
+    relative motion along any friction component (friction then cannot dissipate its energy).  Its
+    linear response is infinite there, and the sweep would fail on a NaN.  (An undamped mode that
+    moves a slider is left alone: friction holds it, tests/test_extremes_systems.py.)  Models of
+    more than ``max_dofs`` DOFs are not checked (their dense eigensolve would cost more than it saves)."""
+    import scipy.linalg as sla
+
+    n = structure.num_dofs
+    if n > max_dofs:
+        return
+    dense = lambda A: A.toarray() if sp.issparse(A) else np.asarray(A)  # noqa: E731
+    w2, Phi = sla.eigh(dense(structure.K_lin), dense(structure.M))
+    f = structure.fc - 1j * structure.fs
+    s = scene.solver
+    rows = [g.gap[np.flatnonzero(g.pairs.dissipative.ravel())] for g in structure.contacts]
+    G = sp.vstack(rows).toarray() if rows and sum(r.shape[0] for r in rows) else np.zeros((0, n))
+    D = dense(structure.D)
+    for k in np.flatnonzero((w2 > 0) & (np.sqrt(np.abs(w2)) >= s.omega_min) & (np.sqrt(np.abs(w2)) <= s.omega_max)):
+        phi, w = Phi[:, k], float(np.sqrt(w2[k]))
+        scale = np.abs(phi).max()
+        damped = abs(phi @ D @ phi) > 1e-12 * 2 * w  # modal damping ratio above 1e-12
+        forced = abs(phi @ f) > 1e-12 * scale * np.abs(f).sum()
+        held = G.shape[0] and np.abs(G @ phi).max() > 1e-9 * scale
+        if forced and not damped and not held:
+            dof = structure.dof_names[int(np.argmax(np.abs(phi)))] if structure.dof_names else int(np.argmax(np.abs(phi)))
+            raise SceneError(scene.path, "solver.omega_range", [s.omega_min, s.omega_max],
+                             f"contains an undamped, forced stuck mode at {w:.6g} rad/s ({w / (2 * np.pi):.5g} Hz), "
+                             f"mostly {dof}, that no friction component moves: its response is unbounded "
+                             f"(add a damper on {dof}, or move the range)")
+
+
 def solve_scene(scene: Scene, *, progress: bool = False, method: str = "full",
                 rom_options: RomOptions = RomOptions(), stability: str = "auto",
                 keep_incomplete: bool = False, resume: Resume | None = None) -> SceneSolution:
@@ -169,6 +202,7 @@ def solve_scene(scene: Scene, *, progress: bool = False, method: str = "full",
     t0 = time.perf_counter()
     structure = create_structure(scene)
     check_resources(scene, structure)
+    check_forced_resonances(scene, structure)
     rom = None if method == "full" else build_rom(structure, method, rom_options)
     t_build = time.perf_counter() - t0
     s = scene.solver

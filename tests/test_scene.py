@@ -154,3 +154,27 @@ def test_set_overrides_any_key_and_validates_again():
                        ("force", "must be key=value")):
         with pytest.raises(SceneError, match=re.escape(words)):
             override(base, [bad])
+
+
+def test_undamped_forced_mode_that_friction_cannot_hold_is_refused(tmp_path):
+    """docs/scenes.md's lumped example without its z damper: the forced z mode (sqrt(k_z + kn) = 2
+    rad/s, inside [0.8, 2.4]) moves no friction component, so nothing bounds it (the sweep failed on
+    a NaN in the slider's shakedown).  Refused before any solve, naming the mode and the DOF.  The
+    SDOF oscillator at c = 0, whose mode friction holds, is not."""
+    from jointfem.app import check_forced_resonances
+    from jointfem.scene import create_structure
+
+    text = (ROOT / "docs" / "scenes.md").read_text()
+    block = re.findall(r"```toml\n(.*?)```", text, re.S)[2]
+    undamped = re.sub(r"\[\[damper\]\][^\n]*\nbetween = \[\"m.z\", \"ground\"\][^\n]*\nc = 0.05\n", "", block)
+    assert undamped != block
+    p = tmp_path / "xz.toml"
+    p.write_text(undamped)
+    scene = load_scene(p)
+    with pytest.raises(SceneError, match=r"undamped, forced stuck mode at 2 rad/s .* mostly m.z"):
+        check_forced_resonances(scene, create_structure(scene))
+    p.write_text(block)
+    check_forced_resonances(load_scene(p), create_structure(load_scene(p)))
+    sdof = (ROOT / "demos" / "sdof_jenkins.toml").read_text().replace("c = 0.02", "c = 0.0")
+    p.write_text(sdof)
+    check_forced_resonances(load_scene(p), create_structure(load_scene(p)))

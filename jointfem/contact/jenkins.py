@@ -86,6 +86,13 @@ class JenkinsPairs(ContactLaw):
         return self.num_tangential + int(self.has_normal)
 
     @property
+    def dissipative(self) -> np.ndarray:
+        """The tangential components of pairs with friction (mu > 0)."""
+        d = np.zeros((self.num_pairs, self.num_comp), bool)
+        d[:, :self.num_tangential] = (self.mu > 0)[:, None]
+        return d
+
+    @property
     def preload(self) -> np.ndarray:
         """Static force f0 of shape (P, m): zero tangential force and N0 normal force."""
         f0 = np.zeros((self.num_pairs, self.num_comp))

@@ -107,6 +107,12 @@ class ContactLaw(ABC):
     def subset(self, index: np.ndarray) -> "ContactLaw":
         """The same law on the pairs ``index`` only."""
 
+    @property
+    def dissipative(self) -> np.ndarray:
+        """(num_pairs, num_comp) bool: the components along which the law can dissipate energy
+        (friction), so that it can bound an undamped resonance.  None by default."""
+        return np.zeros((self.num_pairs, self.num_comp), bool)
+
     def linear_summary(self, g_t: np.ndarray) -> np.ndarray:
         """``summary`` of pairs held by the linearised law f = f0 + Kc g."""
         return self.summary(self.preload[None] + self.stiffness[None] * g_t, g_t)
