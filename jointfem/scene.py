@@ -19,7 +19,7 @@ from .defaults import default_samples
 from .models.beam2d import Beam2DSpec
 from .models.beam2d import dof_names as beam_dof_names
 from .models.beam2d import resolve_dof
-from .models.lumped import AXES, GROUND, ForceSpec, JenkinsSpec, LinkSpec, LumpedSpec, MassSpec
+from .models.lumped import AXES, GROUND, ForceSpec, GapSpringSpec, JenkinsSpec, LinkSpec, LumpedSpec, MassSpec
 from .models.lumped import dof_names as lumped_dof_names
 
 KINDS = ("lumped", "beam2d", "continuum2d", "continuum3d")
@@ -284,17 +284,31 @@ def _lumped(top: _Table) -> LumpedSpec:
         kn = t.number("kn", gt=0) if normal is not None else t.number("kn", 0.0, ge=0)
         jenkins.append(JenkinsSpec(ab[0], ab[1], tang, normal, kt, kn, t.number("mu", ge=0), t.number("N0", ge=0)))
         t.done()
+    cubic = links("cubic_spring", "k3", {"gt": 0})
+    unilateral = []
+    for t in top.tables("unilateral_spring", required=False):
+        ab = t.strings("between", min_len=2, max_len=2)
+        if ab[0] == GROUND:
+            t.fail("between", list(ab), "the first entry must be a DOF (ground goes second)")
+        _check_dofs(t, "between", [x for x in ab if x != GROUND], known)
+        if ab[0] == ab[1]:
+            t.fail("between", list(ab), "a spring needs two different DOFs")
+        unilateral.append(GapSpringSpec(ab[0], ab[1], t.number("k", gt=0), t.number("gap", 0.0, ge=0)))
+        t.done()
     forces = []
     for t in top.tables("force"):
         dof = t.string("dof")
         _check_dofs(t, "dof", [dof], known)
-        forces.append(ForceSpec(dof, t.number("amplitude"), t.number("phase", 0.0)))
+        forces.append(ForceSpec(dof, t.number("amplitude", 0.0), t.number("phase", 0.0), t.number("static", 0.0)))
         t.done()
+    if not any(f.amplitude for f in forces):
+        top.fail("force", [f.dof for f in forces], "no force has a harmonic amplitude: nothing drives the sweep")
     out = top.table("output")
     outputs = out.strings("dofs")
     _check_dofs(out, "dofs", outputs, known)
     out.done()
-    return LumpedSpec(tuple(masses), springs, dampers, tuple(jenkins), tuple(forces), outputs)
+    return LumpedSpec(tuple(masses), springs, dampers, tuple(jenkins), tuple(forces), outputs, cubic,
+                      tuple(unilateral))
 
 
 def _beam2d(top: _Table) -> Beam2DSpec:

@@ -19,7 +19,9 @@ from jointfem.rom import RomOptions, build_rom
 
 
 def test_registry_names_every_law():
-    assert LAWS == {"jenkins": JenkinsPairs, "unilateral_spring": UnilateralSprings}
+    from jointfem.contact import CubicSprings
+
+    assert LAWS == {"jenkins": JenkinsPairs, "unilateral_spring": UnilateralSprings, "cubic_spring": CubicSprings}
     assert all(issubclass(law, ContactLaw) for law in LAWS.values())
 
 

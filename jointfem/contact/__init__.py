@@ -2,6 +2,7 @@
 
 A new law is one file with one ContactLaw class, and one entry here.
 """
+from .cubic import CubicSprings
 from .jenkins import JenkinsPairs
 from .law import ContactError, ContactLaw, ContactResult  # noqa: F401
 from .unilateral import UnilateralSprings
@@ -9,4 +10,5 @@ from .unilateral import UnilateralSprings
 LAWS: dict[str, type[ContactLaw]] = {
     JenkinsPairs.name: JenkinsPairs,
     UnilateralSprings.name: UnilateralSprings,
+    CubicSprings.name: CubicSprings,
 }

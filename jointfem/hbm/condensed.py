@@ -48,6 +48,8 @@ class CondensedProblem(KeepsLastEvaluation, Problem):
         for g in structure.contacts:
             if g.load is not None:
                 raise LinAlgError("exact condensation needs L = G (a physical model, not a ROM)")
+        if structure.f0 is not None:
+            raise LinAlgError("exact condensation: a static force is not supported yet (use full order or a ROM)")
         self.full = structure
         self.harmonics = harmonics
         G = sp.vstack([g.gap for g in structure.contacts]).tocsr()

@@ -83,7 +83,7 @@ class Scales:
 
 def force_scale(structure) -> float:
     """Residual scale of a forced Structure: its largest external force component, N."""
-    return float(max(np.abs(np.concatenate([structure.fc, structure.fs])).max(), 1e-300))
+    return float(max(np.abs(np.concatenate([structure.fc, structure.fs, structure.f_static])).max(), 1e-300))
 
 
 @dataclass(frozen=True)

@@ -51,6 +51,7 @@ class HBMResidual(KeepsLastEvaluation):
         if dense:
             self._A0, self._A1, self._A2 = (a.toarray() for a in (self._A0, self._A1, self._A2))
         F = np.zeros(self.num_unknowns)
+        F[harmonics.cos(0, n)] = structure.f_static
         F[harmonics.cos(1, n)] = structure.fc
         F[harmonics.sin(1, n)] = structure.fs
         self.F_ext = F
@@ -114,4 +115,6 @@ class HBMResidual(KeepsLastEvaluation):
         U = np.zeros(self.num_unknowns)
         U[self.harmonics.cos(1, n)] = X.real
         U[self.harmonics.sin(1, n)] = -X.imag
+        if self.structure.f0 is not None:  # the stuck static deflection
+            U[self.harmonics.cos(0, n)] = sp.linalg.spsolve(self.structure.K_lin.tocsc(), self.structure.f0)
         return U

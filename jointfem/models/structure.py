@@ -82,6 +82,12 @@ class Structure:
     info: dict = field(default_factory=dict)
     substructure: np.ndarray | None = None  # (n,) substructure id per DOF, for the CMS reductions
     links: Links | None = None  # linear joint connections included in K
+    f0: np.ndarray | None = None  # (n,) a static external force, N (the zeroth harmonic); None: none
+
+    @property
+    def f_static(self) -> np.ndarray:
+        """The static external force, N (zeros if there is none)."""
+        return np.zeros(self.num_dofs) if self.f0 is None else self.f0
 
     @property
     def num_dofs(self) -> int:

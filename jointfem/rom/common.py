@@ -138,7 +138,8 @@ def project(structure: Structure, T: np.ndarray, method: str, *, M_override: np.
     M = Mr if M_override is None else sp.csr_matrix(M_override)
     red = Structure(K=pr(structure.K), M=M, D=pr(structure.D), fc=T.T @ structure.fc, fs=T.T @ structure.fs,
                     contacts=contacts, dof_names=tuple(f"{method}.{i}" for i in range(T.shape[1])),
-                    outputs=outputs, info={"kind": f"rom:{method}", "full_dofs": structure.num_dofs})
+                    outputs=outputs, info={"kind": f"rom:{method}", "full_dofs": structure.num_dofs},
+                    f0=None if structure.f0 is None else T.T @ structure.f0)
     return ReducedModel(method, red, T, structure.num_dofs, info=dict(info or {}))
 
 

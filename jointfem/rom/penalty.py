@@ -135,10 +135,13 @@ class PenaltyROM(ReducedModel):
                                          if g.names else (), load=sp.csr_matrix(load)))
         fs = self.full
         fc, fsin = self.T.T @ fs.fc, self.T.T @ fs.fs
+        f0 = None if fs.f0 is None else self.T.T @ fs.f0
         fc[off] = 0.0  # a pinned row says p = 0, nothing else
         fsin[off] = 0.0
+        if f0 is not None:
+            f0[off] = 0.0
         s = Structure(K=sp.csr_matrix(K), M=sp.csr_matrix(M), D=sp.csr_matrix(D), fc=fc,
-                      fs=fsin, contacts=tuple(contacts),
+                      fs=fsin, contacts=tuple(contacts), f0=f0,
                       dof_names=tuple(f"penalty.{i}" for i in range(q)),
                       outputs={nm: self.T[dof].copy() for nm, dof in fs.outputs.items()},
                       info={"kind": "rom:penalty", "active": int(np.count_nonzero(mask))})
