@@ -327,6 +327,50 @@ def software() -> dict:
     return out
 
 
+def linear_modes(structure: Structure, num: int = 10) -> dict:
+    """The lowest ``num`` linear modes of the structure with every contact pair stuck (K_lin: the
+    joint as linear springs, where a sweep starts) and free (K: every pair slipping or open, no
+    contact stiffness).  Per mode: omega (rad/s), the frequency (Hz), the modal damping ratio
+    phi^T D phi / (2 omega) of mass-normalised phi, and the share of the force phi^T f.  Rigid-body
+    modes of a free joint (K singular) come out at 0 rad/s."""
+    from .linalg import eigen
+
+    num = min(num, structure.num_dofs)
+    f = structure.fc - 1j * structure.fs
+    out = {}
+    for label, K in (("stuck", structure.K_lin), ("free", structure.K)):
+        # a free joint may leave rigid-body modes: shift below zero (rad^2/s^2 of the lowest stuck mode)
+        w2, Phi = eigen(K, structure.M, num, what=f"{label} modes", sigma=-1.0)
+        w = np.sqrt(np.clip(w2, 0.0, None))
+        D = structure.D
+        zeta = np.array([float(Phi[:, k] @ (D @ Phi[:, k])) / (2 * w[k]) if w[k] > 0 else np.nan
+                         for k in range(w.size)])
+        out[label] = {"omega_rad_s": w, "freq_Hz": w / (2 * np.pi), "damping_ratio": zeta,
+                      "modal_force_N": np.abs(Phi.T @ f), "shapes": Phi}
+    return out
+
+
+def write_modes(modes: dict, structure: Structure, out: Path) -> None:
+    """modes.csv (one row per mode: stuck and free frequencies, damping ratios, modal forces) and
+    modes.npz (the mass-normalised shapes, DOF names)."""
+    st, fr = modes["stuck"], modes["free"]
+    rows = ["mode,stuck_omega_rad_s,stuck_freq_Hz,stuck_damping_ratio,stuck_modal_force_N,"
+            "free_omega_rad_s,free_freq_Hz,free_damping_ratio,free_modal_force_N"]
+    for k in range(st["omega_rad_s"].size):
+        vals = [st[c][k] for c in ("omega_rad_s", "freq_Hz", "damping_ratio", "modal_force_N")]
+        vals += [fr[c][k] for c in ("omega_rad_s", "freq_Hz", "damping_ratio", "modal_force_N")]
+        rows.append(",".join([str(k + 1)] + ["" if not np.isfinite(v) else f"{v:.10g}" for v in vals]))
+    atomic_write(Path(out) / "modes.csv", lambda p: Path(p).write_text("\n".join(rows) + "\n"))
+
+    def npz(p):
+        with open(p, "wb") as fh:
+            np.savez_compressed(fh, stuck_shapes=st["shapes"], free_shapes=fr["shapes"],
+                                stuck_omega_rad_s=st["omega_rad_s"], free_omega_rad_s=fr["omega_rad_s"],
+                                dof_names=np.array(structure.dof_names, dtype=str))
+
+    atomic_write(Path(out) / "modes.npz", npz)
+
+
 def check_output(out: Path) -> None:
     """Refuse, before any solve, an output folder that cannot be written (read-only, or a file in
     its path), with one line (OutputError).  Nothing is created: a run that then fails early leaves

@@ -59,6 +59,29 @@ def cmd_frf(args) -> int:
     return 0
 
 
+def cmd_modes(args) -> int:
+    from . import app
+    from .scene import create_structure
+
+    scene = app.override(load_scene(args.scene), args.set)
+    out = Path(args.out) if args.out else Path("results") / f"{scene.name}_modes"
+    app.check_output(out)
+    structure = create_structure(scene)
+    modes = app.linear_modes(structure, args.num)
+    app.write_modes(modes, structure, out)
+    if not args.quiet:
+        st, fr = modes["stuck"], modes["free"]
+        lo, hi = scene.solver.omega_min, scene.solver.omega_max
+        print(f"{'mode':>4}  {'stuck [rad/s]':>14} {'[Hz]':>10} {'zeta':>9}   {'free [rad/s]':>14} {'[Hz]':>10}")
+        for k in range(st["omega_rad_s"].size):
+            w = st["omega_rad_s"][k]
+            mark = "  <- in omega_range" if lo <= w <= hi else ""
+            print(f"{k + 1:>4}  {w:14.6g} {st['freq_Hz'][k]:10.5g} {st['damping_ratio'][k]:9.3g}   "
+                  f"{fr['omega_rad_s'][k]:14.6g} {fr['freq_Hz'][k]:10.5g}{mark}")
+        print(f"-> {out}/")
+    return 0
+
+
 def cmd_compare(args) -> int:
     from . import app
 
@@ -120,6 +143,13 @@ def build_parser() -> argparse.ArgumentParser:
     _stability_arg(f)
     _set_arg(f)
     f.set_defaults(func=cmd_frf)
+    mo = sub.add_parser("modes", help="the linear modes with the joint stuck and free (CSV, NPZ): where to sweep")
+    mo.add_argument("scene", help="scene file (TOML)")
+    mo.add_argument("--num", type=int, default=10, help="number of modes (default 10)")
+    mo.add_argument("--out", help="output folder (default results/<scene name>_modes)")
+    mo.add_argument("--quiet", action="store_true")
+    _set_arg(mo)
+    mo.set_defaults(func=cmd_modes)
     pp = sub.add_parser("plot", help="contact-state pictures of a result folder (PNG, off-screen)")
     pp.add_argument("folder", help="a folder written by `jointfem frf`")
     grp = pp.add_mutually_exclusive_group()

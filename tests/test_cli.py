@@ -6,6 +6,7 @@ import subprocess
 import sys
 
 import numpy as np
+import pytest
 
 from jointfem.results import load_branch
 from conftest import ROOT
@@ -271,3 +272,23 @@ def test_output_files_permissions_versions_and_no_stale_pictures(tmp_path):
     assert not (out / "interface_3.png").exists() and (out / "notes.txt").read_text() == "mine"
     sw = json.loads((out / "summary.json").read_text())["software"]
     assert sw["jointfem"] and sw["numpy"] == np.__version__ and "python" in sw
+
+
+def test_modes_command_gives_stuck_and_free_frequencies(tmp_path):
+    """SDOF Jenkins (m = k = kt = 1, c = 0.02): stuck sqrt(k + kt) = sqrt 2, free sqrt(k) = 1 rad/s,
+    damping ratios c / (2 m w), the modal force 0.2 N, written to modes.csv and modes.npz."""
+    out = tmp_path / "m"
+    r = subprocess.run([sys.executable, "-m", "jointfem", "modes", str(ROOT / "demos" / "sdof_jenkins.toml"),
+                        "--out", str(out)], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    assert "in omega_range" in r.stdout
+    with open(out / "modes.csv") as fh:
+        row = list(csv.DictReader(fh))[0]
+    assert float(row["stuck_omega_rad_s"]) == pytest.approx(np.sqrt(2), rel=1e-9)
+    assert float(row["free_omega_rad_s"]) == pytest.approx(1.0, rel=1e-9)
+    assert float(row["stuck_freq_Hz"]) == pytest.approx(np.sqrt(2) / (2 * np.pi), rel=1e-9)
+    assert float(row["stuck_damping_ratio"]) == pytest.approx(0.02 / (2 * np.sqrt(2)), rel=1e-9)
+    assert float(row["free_damping_ratio"]) == pytest.approx(0.01, rel=1e-9)
+    assert float(row["stuck_modal_force_N"]) == pytest.approx(0.2, rel=1e-9)
+    with np.load(out / "modes.npz") as z:
+        assert z["stuck_shapes"].shape == (1, 1) and list(z["dof_names"]) == ["m.x"]
