@@ -35,6 +35,10 @@ class ConvergenceError(RuntimeError):
         self.lam = lam
 
 
+class _OutOfTime(Exception):
+    """The branch's time limit passed during a step (not a RuntimeError: no step may catch it)."""
+
+
 class ContinuationError(RuntimeError):
     """Continuation cannot go on (step at its minimum, a budget reached, the branch out of bounds).
 
@@ -317,7 +321,8 @@ def continue_branch(fun: Callable, x0: np.ndarray, lam0: float, lam_end: float, 
         it0 += it
     else:
         raise ContinuationError(f"the problem kept changing at the start point lam = {lam0:.9g}")
-    g = _scaled(fun, x_scale, lam_scale, r_scale)
+    g = g_plain = _scaled(fun, x_scale, lam_scale, r_scale)
+    t_start = time.monotonic()
     y, mu = x / x_scale, lam0 / lam_scale
     mu_end = lam_end / lam_scale
     direction = np.sign(mu_end - mu)
@@ -346,7 +351,6 @@ def continue_branch(fun: Callable, x0: np.ndarray, lam0: float, lam_end: float, 
     redo = 0
     counts = stats if stats is not None else {}
     counts.update(refused_steps=0, corners_passed=0, redone_steps=0)
-    t_start = time.monotonic()
 
     def stop(why: str):
         return ContinuationError(f"continuation stopped at lam = {mu * lam_scale:.9g} before reaching "
@@ -460,6 +464,13 @@ def continue_branch(fun: Callable, x0: np.ndarray, lam0: float, lam_end: float, 
             return None
         return z0 + hi * d, t2
 
+    def g(y_, mu_):  # (the steps' closures below see this binding)
+        # the time limit also holds inside a step (one corrector of the exact condensation on the
+        # 3D lap joint took 300 s): past it, the evaluation stops the branch
+        if opts.time_limit is not None and time.monotonic() - t_start > opts.time_limit:
+            raise _OutOfTime
+        return g_plain(y_, mu_)
+
     try:
         while (mu - mu_end) * direction < 0:
             if len(points) >= opts.max_points:
@@ -527,6 +538,8 @@ def continue_branch(fun: Callable, x0: np.ndarray, lam0: float, lam_end: float, 
                 # (a corrector stalled on a kink takes stall_iter iterations whatever the step)
                 ds = min(ds * opts.grow, opts.ds_max)
             points[-1].ds_next = ds
+    except _OutOfTime:
+        raise stop(f"the time limit of {opts.time_limit:g} s was reached (time_limit)") from None
     except KeyboardInterrupt:
         # Ctrl-C: the points converged so far are kept, as for any other stop
         raise ContinuationError(f"continuation interrupted (Ctrl-C) at lam = {points[-1].lam:.9g} after "
