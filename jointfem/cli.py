@@ -82,6 +82,16 @@ def cmd_modes(args) -> int:
     return 0
 
 
+def cmd_export(args) -> int:
+    from .export import export_point
+
+    paths = export_point(args.folder, point=args.point, omega=args.omega, out=args.out)
+    if not args.quiet:
+        for p in paths:
+            print(f"wrote {p}")
+    return 0
+
+
 def cmd_compare(args) -> int:
     from . import app
 
@@ -150,6 +160,14 @@ def build_parser() -> argparse.ArgumentParser:
     mo.add_argument("--quiet", action="store_true")
     _set_arg(mo)
     mo.set_defaults(func=cmd_modes)
+    ex = sub.add_parser("export", help="ParaView files (VTU) of a result folder at one branch point")
+    ex.add_argument("folder", help="a folder written by `jointfem frf`")
+    grp = ex.add_mutually_exclusive_group()
+    grp.add_argument("--point", default="peak", help="'peak' (default) or a branch point index")
+    grp.add_argument("--omega", type=float, help="the branch point nearest to this omega, rad/s")
+    ex.add_argument("--out", help="output folder (default FOLDER/export)")
+    ex.add_argument("--quiet", action="store_true")
+    ex.set_defaults(func=cmd_export)
     pp = sub.add_parser("plot", help="contact-state pictures of a result folder (PNG, off-screen)")
     pp.add_argument("folder", help="a folder written by `jointfem frf`")
     grp = pp.add_mutually_exclusive_group()

@@ -5,6 +5,8 @@ beam with a stiffer tangential joint, which sticks, slips and separates along it
 """
 from __future__ import annotations
 
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -12,7 +14,7 @@ import pytest
 
 from jointfem import viz
 from jointfem.cli import main
-from jointfem.results import OutputError
+from jointfem.results import OutputError, load_branch
 from conftest import ROOT
 
 
@@ -145,3 +147,31 @@ def test_frf_picture_has_rom_size_axis(separating):
     sizes = load_branch(separating / "branch.npz")["rom_size"]
     assert sizes.max() > sizes.min()  # the active set changed along the branch, so the axis is drawn
     assert grey > 100  # measured: 245 with the axis, 12-16 in pictures without it
+
+def test_paraview_export_holds_the_solved_fields(tmp_path):
+    """`jointfem export` at a point of a continuum run: field_<i>.vtu carries every node's harmonics
+    (the first harmonic at the output node equals the solved coefficients), and pairs_<i>.vtu every
+    pair's energy and state shares as in branch.npz."""
+    import meshio
+
+    out = tmp_path / "l2"
+    r = subprocess.run([sys.executable, "-m", "jointfem", "frf", str(ROOT / "demos" / "lap2d.toml"), "--harmonics", "1",
+                        "--samples", "32", "--set", "solver.omega_range=[1600, 1610]", "--out", str(out), "--quiet"],
+                       capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    r = subprocess.run([sys.executable, "-m", "jointfem", "export", str(out), "--point", "3"], capture_output=True,
+                       text=True)
+    assert r.returncode == 0, r.stderr
+    b = load_branch(out / "branch.npz")
+    with np.load(out / "shape.npz") as z:
+        node, comp = z["dof_node"], z["dof_comp"]
+    field = meshio.read(out / "export" / "field_3.vtu")
+    q = int(b["num_dofs"])
+    dof = int(b["output_dofs"][0])
+    np.testing.assert_allclose(field.point_data["u_1_cos"][node[dof], comp[dof]], b["U"][3, q + dof], rtol=1e-12)
+    np.testing.assert_allclose(field.point_data["u_1_sin"][node[dof], comp[dof]], b["U"][3, 2 * q + dof], rtol=1e-12)
+    pairs = meshio.read(out / "export" / "pairs_3.vtu")
+    np.testing.assert_allclose(pairs.point_data["energy_J"], b["pair_energy_J"][3])
+    share = sum(pairs.point_data[k] for k in ("stick_share", "slip_share", "separated_share"))
+    np.testing.assert_allclose(share, 1.0)
+    assert pairs.points.shape == (b["pair_coords"].shape[0], 3)
