@@ -14,6 +14,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from .continuation.arclength import ContinuationOptions, NewtonOptions
 from .defaults import default_samples
 from .models.beam2d import Beam2DSpec
@@ -22,7 +24,7 @@ from .models.beam2d import resolve_dof
 from .models.lumped import AXES, GROUND, ForceSpec, GapSpringSpec, JenkinsSpec, LinkSpec, LumpedSpec, MassSpec
 from .models.lumped import dof_names as lumped_dof_names
 
-KINDS = ("lumped", "beam2d", "continuum2d", "continuum3d")
+KINDS = ("lumped", "beam2d", "continuum2d", "continuum3d", "matrices")
 
 
 class SceneError(ValueError):
@@ -311,6 +313,85 @@ def _lumped(top: _Table) -> LumpedSpec:
                       tuple(unilateral))
 
 
+def _matrices(top: _Table, path):
+    """kind = "matrices": K, M (and D) from files, Jenkins pairs between DOFs (models.matrices)."""
+    import scipy.sparse as sp
+
+    from .models.matrices import DofPairSpec, MatricesSpec, MatrixFileError, read_matrix
+
+    t = top.table("matrices")
+    variables = t.raw("variables", {})
+    if not isinstance(variables, dict):
+        t.fail("variables", variables, "must be a table like {K = \"Kr\", M = \"Mr\"} (MATLAB variable names)")
+    here = Path(str(path)).resolve().parent if Path(str(path)).is_file() else Path.cwd()
+    mats = {}
+    for key in ("K", "M", "D"):
+        if key == "D" and not t.has("D"):
+            continue
+        f = t.string(key)
+        try:
+            mats[key] = read_matrix(here / f if not Path(f).is_absolute() else Path(f), variables.get(key))
+        except MatrixFileError as exc:
+            t.fail(key, f, str(exc))
+    n = mats["K"].shape[0]
+    for key, A in mats.items():
+        if A.shape[0] != n:
+            t.fail(key, t.data[key], f"is {A.shape[0]} x {A.shape[0]}, but K is {n} x {n}")
+        if key in ("K", "M") and abs(A - A.T).max() > 1e-10 * max(abs(A).max(), 1e-300):
+            t.fail(key, t.data[key], "is not symmetric (to 1e-10 of its largest entry)")
+    if np.any(mats["M"].diagonal() <= 0):
+        t.fail("M", t.data["M"], "has a diagonal entry <= 0: not a mass matrix")
+    names = tuple(str(x) for x in t.raw("dof_names", [str(i) for i in range(n)]))
+    if len(names) != n or len(set(names)) != n or GROUND in names:
+        t.fail("dof_names", list(names), f"must be {n} different names (not 'ground')")
+    t.done()
+    known = set(names)
+
+    def dof_pair(tt, key, value):
+        if (not isinstance(value, list) or len(value) != 2 or str(value[0]) == GROUND
+                or any(str(v) not in known and str(v) != GROUND for v in value) or str(value[0]) == str(value[1])):
+            tt.fail(key, value, "must be [a, b]: two different DOFs of the model, b may be \"ground\"")
+        return str(value[0]), str(value[1])
+
+    jenkins = []
+    for tt in top.tables("jenkins", required=False):
+        tang = tt.raw("tangential")
+        if not isinstance(tang, list) or not 1 <= len(tang) <= 2:
+            tt.fail("tangential", tang, "must be a list of one or two [a, b] DOF pairs")
+        tang = tuple(dof_pair(tt, "tangential", v) for v in tang)
+        normal = dof_pair(tt, "normal", tt.raw("normal")) if tt.has("normal") else None
+        kt = tt.number("kt", gt=0)
+        kn = tt.number("kn", gt=0) if normal is not None else tt.number("kn", 0.0, ge=0)
+        jenkins.append(DofPairSpec(tang, normal, kt, kn, tt.number("mu", ge=0), tt.number("N0", ge=0)))
+        tt.done()
+    forces = []
+    for tt in top.tables("force"):
+        dof = str(tt.raw("dof"))
+        if dof not in known:
+            tt.fail("dof", dof, "no such DOF")
+        forces.append(ForceSpec(dof, tt.number("amplitude", 0.0), tt.number("phase", 0.0), tt.number("static", 0.0)))
+        tt.done()
+    if not any(f.amplitude for f in forces):
+        top.fail("force", [f.dof for f in forces], "no force has a harmonic amplitude: nothing drives the sweep")
+    out = top.table("output")
+    outputs = tuple(str(x) for x in out.raw("dofs"))
+    for o in outputs:
+        if o not in known:
+            out.fail("dofs", o, "no such DOF")
+    out.done()
+    D = mats.get("D")
+    if top.has("damping"):
+        if D is not None:
+            top.fail("damping", top.data["damping"], "give D in [matrices] or a [damping] table, not both")
+        dt = top.table("damping")
+        dt.string("kind", choices=("rayleigh",))
+        D = dt.number("alpha", ge=0) * mats["M"] + dt.number("beta", ge=0) * mats["K"]
+        dt.done()
+    if D is None:
+        D = sp.csr_matrix((n, n))
+    return MatricesSpec(mats["K"], mats["M"], sp.csr_matrix(D), names, tuple(jenkins), tuple(forces), outputs)
+
+
 def _beam2d(top: _Table) -> Beam2DSpec:
     d = Beam2DSpec()
     b = top.table("beam", required=False)
@@ -496,6 +577,8 @@ def parse_scene(data: dict, path="<scene>") -> Scene:
         model = _lumped(top)
     elif kind == "beam2d":
         model = _beam2d(top)
+    elif kind == "matrices":
+        model = _matrices(top, path)
     else:
         model = _continuum(top, kind, path)
     top.done()
@@ -554,5 +637,8 @@ def create_structure(scene: Scene):
     if scene.kind == "beam2d":
         from .models.beam2d import create_beam2d
         return create_beam2d(scene.model)
+    if scene.kind == "matrices":
+        from .models.matrices import create_matrices
+        return create_matrices(scene.model)
     from .fem.continuum import create_continuum
     return create_continuum(scene.model)

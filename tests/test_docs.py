@@ -18,7 +18,7 @@ from jointfem.scene import SceneError, create_structure, load_scene, parse_scene
 from conftest import ROOT
 
 BASE = {"lumped": "sdof_jenkins.toml", "beam2d": "beam2d.toml", "continuum3d": "lap3d.toml",
-        "continuum2d": "lap2d.toml"}
+        "continuum2d": "lap2d.toml", "matrices": "matrices_xz.toml"}
 DOCS = sorted((ROOT / "docs").glob("*.md")) + [ROOT / "README.md"]
 BLOCKS = [(f"{doc.relative_to(ROOT)}#{i}", m.group(1))
           for doc in DOCS for i, m in enumerate(re.finditer(r"```toml\n(.*?)```", doc.read_text(), re.S))]
@@ -40,8 +40,8 @@ def _overlay(base: dict, block: dict) -> dict:
 def test_every_documented_block_loads(where, text):
     block = tomllib.loads(text)
     kind = block.get("kind", "lumped")
-    base = load_scene(ROOT / "demos" / BASE[kind]).data
-    parse_scene(_overlay(base, block), ROOT / "demos" / where.replace("/", "_"))
+    base = ROOT / "demos" / BASE[kind]
+    parse_scene(_overlay(load_scene(base).data, block), base)  # file paths in it: relative to demos/
 
 
 WHOLE = []
@@ -68,3 +68,8 @@ def test_every_whole_documented_scene_sweeps(where, text):
     frf = compute_frf(s, sweep_options(scene, stability="off"))
     assert frf.info["status"] == "complete"
     assert frf.omega.max() >= scene.solver.omega_max - 1e-9 and frf.omega.min() <= scene.solver.omega_min + 1e-9
+
+
+@pytest.mark.parametrize("demo", sorted(p.name for p in (ROOT / "demos").glob("*.toml")))
+def test_every_demo_scene_loads(demo):
+    load_scene(ROOT / "demos" / demo)
