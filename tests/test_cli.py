@@ -292,3 +292,14 @@ def test_modes_command_gives_stuck_and_free_frequencies(tmp_path):
     assert float(row["stuck_modal_force_N"]) == pytest.approx(0.2, rel=1e-9)
     with np.load(out / "modes.npz") as z:
         assert z["stuck_shapes"].shape == (1, 1) and list(z["dof_names"]) == ["m.x"]
+
+
+def test_import_from_the_folder_above_a_clone_named_jointfem(tmp_path):
+    """A script run next to a clone named jointfem: the clone folder (no __init__.py) must not
+    shadow the installed package as an empty namespace package (tools/setup.sh installs in
+    compat mode)."""
+    (tmp_path / "jointfem").symlink_to(ROOT, target_is_directory=True)
+    r = subprocess.run([sys.executable, "-c", "from jointfem import load_scene; import jointfem; print(jointfem.__file__)"],
+                       cwd=tmp_path, capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.strip().endswith("jointfem/__init__.py")

@@ -34,11 +34,15 @@ for name in ("numpy", "scipy", "mpi4py", "petsc4py", "slepc4py", "fenics-dolfinx
         pass
 PY
 
-stamp=.venv/.jointfem-installed
+stamp=.venv/.jointfem-installed-compat
 if [ ! -f "$stamp" ] || [ pyproject.toml -nt "$stamp" ]; then
   echo "setup: pip install -e .[dev] (constrained to the system numpy)"
   .venv/bin/python -m pip install -q --upgrade "pip>=23" -c .venv/constraints.txt
-  .venv/bin/python -m pip install -q -c .venv/constraints.txt -e ".[dev]"
+  # compat mode: a .pth entry for the clone, so that a folder named jointfem in the current
+  # directory (a clone's parent folder) cannot shadow the package as an empty namespace package,
+  # which the default editable finder (on sys.meta_path after the path finder) lets happen
+  .venv/bin/python -m pip install -q -c .venv/constraints.txt -e ".[dev]" --config-settings editable_mode=compat \
+    2>/dev/null || .venv/bin/python -m pip install -q -c .venv/constraints.txt -e ".[dev]"
   .venv/bin/python -c "import numpy, petsc4py; from petsc4py import PETSc" \
     || { echo "setup: numpy/petsc4py broken after install" >&2; exit 1; }
   touch "$stamp"
