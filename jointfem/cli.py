@@ -207,7 +207,10 @@ def main(argv=None) -> int:
         return 130
     except (SceneError, ConvergenceError, ContinuationError, ContactError, OutputError, RomError,
             LinAlgError, ContinuumError) as exc:
-        print(f"jointfem: error: {exc}", file=sys.stderr)
+        from . import parallel
+
+        if parallel.is_root():  # under mpirun every rank meets the same error: one line, not one per rank
+            print(f"jointfem: error: {exc}", file=sys.stderr)
         return 2
 
 

@@ -348,3 +348,12 @@ def test_mpi_two_ranks_equal_serial(tmp_path):
     import json
     sa = json.loads((tmp_path / "mpi" / "summary.json").read_text())
     assert sa["mpi_ranks"] == 2
+
+
+def test_mpi_error_is_printed_once(tmp_path):
+    """Under mpirun every rank meets the same bad scene; the one-line error comes from rank 0 only."""
+    r = subprocess.run(_mpirun() + [sys.executable, "-m", "jointfem", "frf", str(ROOT / "demos" / "sdof_jenkins.toml"),
+                                    "--set", "jenkins[0].mu=-1", "--out", str(tmp_path / "o")],
+                       capture_output=True, text=True, cwd=ROOT, timeout=300)
+    assert r.stderr.count("jointfem: error:") == 1, r.stderr
+    assert "jenkins[0].mu = -1" in r.stderr
