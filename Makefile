@@ -2,7 +2,7 @@
 PY := .venv/bin/python
 MPIRUN := mpirun $(if $(filter 0,$(shell id -u)),--allow-run-as-root) --oversubscribe
 
-.PHONY: setup demo test test-fast bench paper validate clean
+.PHONY: setup demo test test-fast bench bench-corners paper validate clean
 
 setup:
 	@bash tools/setup.sh
@@ -16,6 +16,10 @@ test: setup
 
 bench: setup
 	$(PY) benchmarks/bench.py --out docs/benchmarks.md
+
+# issue 14's sweeps at strong separation, each under a time budget (about 30 min on 2 cores)
+bench-corners: setup
+	$(PY) benchmarks/corners.py --out docs/benchmarks_corners.md --jobs 2 --skip-before
 
 paper: setup
 	$(PY) demos/paper_figures.py --out docs
