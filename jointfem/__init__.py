@@ -14,3 +14,17 @@ def compute_frf(model, options, **kw):
     from .analysis.frf import compute_frf as _compute
 
     return _compute(model, options, **kw)
+
+
+def solve_at(model, omega, harmonics, **kw):
+    """See jointfem.analysis.frf.solve_at: the periodic response at one omega (rad/s)."""
+    from .analysis.frf import solve_at as _solve
+
+    return _solve(model, omega, harmonics, **kw)
+
+
+def linear_modes(structure, num=10):
+    """See jointfem.app.linear_modes: the linear modes with the joint stuck and free."""
+    from .app import linear_modes as _modes
+
+    return _modes(structure, num)

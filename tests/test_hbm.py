@@ -180,3 +180,31 @@ def test_downward_sweep_gives_the_same_curve():
     hbm = HBMResidual(s, h)
     res = [np.abs(hbm.evaluate(U, w, jacobian=False).R).max() for U, w in zip(down.U, down.omega)]
     assert max(res) <= 1e-8 * 0.2
+
+
+def test_solve_at_one_frequency_is_the_branch_point():
+    """jointfem.solve_at: stuck (F = 0.01) it is the linear response |F / (k + kt - w^2 + i c w)|;
+    slipping (F = 0.5) from the branch's own point as guess it returns that point (1e-9), and from
+    the linear guess below the fold it finds the same solution."""
+    import jointfem
+    from conftest import sdof
+    from jointfem.analysis.frf import SweepOptions, compute_frf
+    from jointfem.harmonics import Harmonics
+    from jointfem.models.lumped import create_lumped
+
+    h = Harmonics(7, 256)
+    s = create_lumped(sdof(0.01))
+    sol = jointfem.solve_at(s, 1.2, h)
+    assert sol.amplitudes["m.x"] == pytest.approx(0.01 / abs(2.0 - 1.44 + 0.02j * 1.2), rel=1e-10)
+    assert (sol.record.states == 0).all() and sol.residual < 1e-10
+    s = create_lumped(sdof(0.5))
+    frf = compute_frf(s, SweepOptions(0.5, 2.0, h, stability=False))
+    k = int(np.argmin(np.abs(frf.omega - 1.45)))  # past the peak (1.29 rad/s), slipping
+    assert frf.amplitude(0)[k] > 1.0  # beyond Fs / kt: the pair slips
+    sol = jointfem.solve_at(s, float(frf.omega[k]), h, guess=frf.U[k])
+    np.testing.assert_allclose(sol.U, frf.U[k], rtol=0, atol=1e-9 * np.abs(frf.U[k]).max())
+    assert (sol.record.states == 1).any()
+    assert jointfem.solve_at(s, float(frf.omega[k]), h).amplitudes["m.x"] == pytest.approx(
+        frf.amplitude(0)[k], rel=1e-8)
+    modes = jointfem.linear_modes(s, 1)
+    assert modes["stuck"]["omega_rad_s"][0] == pytest.approx(np.sqrt(2.0), rel=1e-12)

@@ -8,7 +8,8 @@ from typing import Callable
 
 import numpy as np
 
-from ..continuation.arclength import ContinuationError, ContinuationOptions, ContinuationPoint, continue_branch
+from ..continuation.arclength import (ContinuationError, ContinuationOptions, ContinuationPoint, NewtonOptions,
+                                     continue_branch, solve_newton)
 from ..harmonics import Harmonics
 from ..hbm.forced import ForcedProblem
 from ..hbm.problem import Problem, newton_system
@@ -213,3 +214,37 @@ def compute_frf(model: Structure | Reduction, options: SweepOptions, *,
     if stopped is not None:  # (the continuation's lam is omega here)
         raise SweepIncomplete(info["stop_reason"], frf=frf, interrupted=stopped.interrupted)
     return frf
+
+
+@dataclass(frozen=True)
+class Solution:
+    """One periodic solution at a fixed omega (``solve_at``)."""
+
+    omega: float  # rad/s
+    U: np.ndarray  # the problem's harmonic coefficients (layout: problem.layout)
+    amplitudes: dict  # output name -> first-harmonic amplitude, m
+    record: object  # the problem's PointRecord: contact states, pair summary, size
+    iterations: int
+    residual: float  # achieved max|R| / max|F|
+
+
+def solve_at(model: Structure | Reduction, omega: float, harmonics: Harmonics, *, guess: np.ndarray | None = None,
+             newton: NewtonOptions = NewtonOptions()) -> Solution:
+    """The periodic response at one omega (rad/s) by Newton, from ``guess`` or the stuck linear
+    solution.  Where the response is multi-valued (past a fold), which solution Newton finds
+    depends on the guess: give one from a branch (FrequencyResponse.U) to pick it.  Raises
+    ConvergenceError with the last residual if Newton fails."""
+    problem = create_problem(model, harmonics)
+    scales = problem.scales(omega, omega * (1 + 1e-3))
+    U0 = problem.initial_guess(omega) if guess is None else np.asarray(guess, float)
+    opts = replace(newton, tol=max(newton.tol, problem.tol_floor))
+    U, it = solve_newton(newton_system(problem), U0, omega, x_scale=scales.x, r_scale=scales.r, options=opts)
+    ev = problem.evaluate(U, omega, jacobian=False)
+    nh = harmonics.num_hc
+    q = problem.num_unknowns // nh
+    amps = {}
+    for name, out in problem.layout.outputs.items():
+        c, s_ = U[harmonics.cos(1, q)], U[harmonics.sin(1, q)]
+        amps[name] = float(np.hypot(out @ c, out @ s_) if np.ndim(out) else np.hypot(c[out], s_[out]))
+    res = float(np.max(np.abs(ev.R)) / np.max(np.abs(scales.r))) if ev.R.size else 0.0
+    return Solution(omega, U, amps, problem.record(U, omega, ev), it, res)
