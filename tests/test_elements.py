@@ -152,3 +152,30 @@ def test_static_force_against_a_static_solve():
 def test_bad_elements_are_one_line(table, entry, words):
     with pytest.raises(SceneError, match=words.replace("[", r"\[").replace("]", r"\]")):
         parse_scene({**DUFFING, table: [entry]}, "bad.toml")
+
+
+def test_static_normal_load_splits_between_contact_and_parallel_spring():
+    """docs/scenes.md's two-DOF scene: a Jenkins pair with normal stiffness kn = 1 in parallel with a
+    spring kz = 3 on z.  Preloading it with N0 = 1 is the same as N0 = 0 and a static force
+    P = (kn + kz) N0 / kn = 4 N on z: the pair then carries kn P / (kn + kz) = 1 N.  The two sweeps
+    have the same harmonics k >= 1 to 1e-9, and z's mean differs by P / (kn + kz) = 1 m."""
+    import re as _re
+
+    from conftest import ROOT
+
+    block = _re.findall(r"```toml\n(.*?)```", (ROOT / "docs" / "scenes.md").read_text(), _re.S)[2]
+    import tomllib
+
+    base = tomllib.loads(block)
+    base["solver"].update(harmonics=5, samples=128)
+    pre = parse_scene(base, "n0.toml")
+    loaded = {**base, "jenkins": [{**base["jenkins"][0], "N0": 0.0}],
+              "force": [base["force"][0], {**base["force"][1], "static": 4.0}]}
+    st = parse_scene(loaded, "static.toml")
+    a = compute_frf(create_structure(pre), sweep_options(pre, stability="off"))
+    b = compute_frf(create_structure(st), sweep_options(st, stability="off"))
+    assert (a.states == 1).any() and a.omega.size == b.omega.size
+    n = 2
+    np.testing.assert_allclose(b.U[:, n:], a.U[:, n:], rtol=0, atol=1e-9 * np.abs(a.U).max())
+    np.testing.assert_allclose(b.U[:, 1] - a.U[:, 1], 1.0, rtol=1e-9)  # z's mean: P / (kn + kz)
+    np.testing.assert_allclose(b.U[:, 0], a.U[:, 0], atol=1e-9)  # x's mean unchanged
