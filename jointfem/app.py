@@ -213,7 +213,10 @@ def solve_scene(scene: Scene, *, progress: bool = False, method: str = "full",
         from tqdm import tqdm
 
         span = abs(s.omega_end - s.omega_start)
-        bar = tqdm(total=round(span, 6), unit="rad/s", desc=f"{scene.name} omega", file=sys.stderr,
+        # until the first point: numba compiles the contact kernels on a machine's first run (about
+        # 50 s, cached after), and the start point's Newton solve; the bar says so, not a fake rate
+        bar = tqdm(total=round(span, 6), unit="rad/s", desc=f"{scene.name}: compiling kernels / first point",
+                   file=sys.stderr,
                    bar_format="{desc}: {percentage:3.0f}%|{bar}| {n:.4g}/{total:.4g} rad/s [{elapsed}<{remaining}]"
                               "{postfix}")
 
@@ -223,6 +226,9 @@ def solve_scene(scene: Scene, *, progress: bool = False, method: str = "full",
             # the bar counts the span covered; the postfix the points (a branch that turns back at a
             # fold makes progress the bar cannot show), refreshed at most twice a second
             count[0] += 1
+            if count[0] == 1:
+                bar.set_description_str(f"{scene.name} omega", refresh=False)
+                bar.reset(total=round(span, 6))  # the estimate starts at the first point
             done = min(abs(point.lam - s.omega_start), span)
             now = time.monotonic()
             bar.set_postfix_str(f"points={count[0]} omega={point.lam:.6g} newton={point.iterations}",
