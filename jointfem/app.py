@@ -377,6 +377,62 @@ def write_modes(modes: dict, structure: Structure, out: Path) -> None:
     atomic_write(Path(out) / "modes.npz", npz)
 
 
+def write_force(response, scene: Scene, out: Path, *, method: str) -> dict:
+    """A force sweep's folder: force.csv (scale, the scene's first harmonic force times it, each
+    output's first-harmonic amplitude), branch.npz, summary.json and force.png (log-log)."""
+    from .plots import pyplot
+
+    out = Path(out)
+    amps = [a for a in scene_force_amplitudes(scene) if a]
+    F1 = float(amps[0]) if amps else 1.0
+    names = list(response.outputs)
+    cols = [response.scale, response.scale * F1] + [response.amplitude(n) for n in names]
+    header = ["force_scale", "force_N"] + [f"{n}_amp1_m" for n in names]
+    table = np.column_stack(cols)
+    if not np.all(np.isfinite(table)):
+        raise OutputError("force sweep holds a non-finite value; nothing written")
+    atomic_write(out / "force.csv", lambda p: np.savetxt(p, table, delimiter=",", header=",".join(header),
+                                                          comments="", fmt="%.12e"))
+
+    def npz(p):
+        with open(p, "wb") as fh:
+            np.savez_compressed(fh, scale=response.scale, U=response.U, states=response.states,
+                                omega=response.omega, H=response.harmonics.H, N=response.harmonics.N,
+                                **{k: np.asarray(v) for k, v in response.info["arrays"].items()})
+
+    atomic_write(out / "branch.npz", npz)
+    summary = {"scene": str(scene.path), "scene_data": scene.data, "method": method, "analysis": "force",
+               "omega_rad_s": response.omega, "freq_Hz": response.omega / (2 * np.pi),
+               "harmonics": response.harmonics.H, "samples": response.harmonics.N,
+               "num_points": int(response.scale.size), "status": response.info.get("status", "complete"),
+               **({"stop_reason": response.info["stop_reason"]} if "stop_reason" in response.info else {}),
+               "continuation": response.info["continuation"], "num_unknowns": response.info["num_unknowns"],
+               "wall_s": response.info["time_s"], "software": software()}
+    atomic_write(out / "summary.json", lambda p: Path(p).write_text(json.dumps(summary, indent=2, default=float)))
+    plt = pyplot()
+    fig, ax = plt.subplots(figsize=(6.4, 4.2))
+    for n in names:
+        ax.loglog(response.scale * F1, response.amplitude(n), label=n)
+    ax.set_xlabel("force amplitude [N]")
+    ax.set_ylabel("first-harmonic amplitude [m]")
+    ax.set_title(f"{scene.name} at {response.omega:.6g} rad/s ({response.omega / (2 * np.pi):.5g} Hz), {method}",
+                 fontsize=10)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    atomic_write(out / "force.png", lambda p: fig.savefig(p, dpi=100, format="png"))
+    plt.close(fig)
+    return summary
+
+
+def scene_force_amplitudes(scene: Scene) -> list[float]:
+    """The harmonic amplitudes of the scene's forces, N (lumped and matrices kinds: each
+    [[force]]; the beam and continua: their one force)."""
+    if scene.kind in ("lumped", "matrices"):
+        return [f.amplitude for f in scene.model.forces]
+    return [scene.model.force]
+
+
 def check_output(out: Path) -> None:
     """Refuse, before any solve, an output folder that cannot be written (read-only, or a file in
     its path), with one line (OutputError).  Nothing is created: a run that then fails early leaves

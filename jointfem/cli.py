@@ -82,6 +82,45 @@ def cmd_modes(args) -> int:
     return 0
 
 
+def cmd_force(args) -> int:
+    from . import app, parallel
+    from .analysis.force import compute_force_response
+    from .analysis.frf import SweepIncomplete  # noqa: F401
+    from .harmonics import Harmonics
+    from .rom import build_rom
+    from .scene import check_solvable, create_structure
+
+    scene = app.override_harmonics(app.override(load_scene(args.scene), args.set), args.harmonics, args.samples)
+    out = Path(args.out) if args.out else Path("results") / f"{scene.name}_force"
+    if not args.omega > 0:
+        raise SceneError("--omega", "omega", args.omega, "must be > 0 rad/s")
+    lo, hi = args.scale
+    if not 0 < lo < hi:
+        raise SceneError("--scale", "scale", [lo, hi], "must be 0 < start < end")
+    if parallel.is_root():
+        app.check_output(out)
+    check_solvable(scene)
+    structure = create_structure(scene)
+    app.check_resources(scene, structure)
+    model = structure if args.method == "full" else build_rom(structure, args.method, _rom_options(args))
+    opts = app.sweep_options(scene, stability="off").continuation
+    stopped = None
+    try:
+        resp = compute_force_response(model, args.omega, Harmonics(scene.solver.harmonics, scene.solver.samples),
+                                      lo, hi, opts)
+    except ContinuationError as exc:
+        if len(exc.points) < 2:
+            raise
+        raise SceneError("--scale", "scale", [lo, hi], f"the force sweep stopped: {exc}") from None
+    if not parallel.is_root():
+        return 0
+    summary = app.write_force(resp, scene, out, method=args.method)
+    if not args.quiet:
+        print(f"{summary['num_points']} points from scale {lo:g} to {resp.scale[-1]:.6g} at {args.omega:g} rad/s "
+              f"-> {out}/")
+    return 0
+
+
 def cmd_export(args) -> int:
     from .export import export_point
 
@@ -160,6 +199,20 @@ def build_parser() -> argparse.ArgumentParser:
     mo.add_argument("--quiet", action="store_true")
     _set_arg(mo)
     mo.set_defaults(func=cmd_modes)
+    fo = sub.add_parser("force", help="the response against the force amplitude at one omega (continuation)")
+    fo.add_argument("scene", help="scene file (TOML)")
+    fo.add_argument("--omega", type=float, required=True, help="the fixed frequency, rad/s")
+    fo.add_argument("--scale", type=float, nargs=2, default=(0.01, 1.0), metavar=("START", "END"),
+                    help="the range of the factor on every force of the scene (default 0.01 1)")
+    fo.add_argument("--out", help="output folder (default results/<scene name>_force)")
+    fo.add_argument("--harmonics", type=int, help="number of harmonics H (overrides the scene)")
+    fo.add_argument("--samples", type=int, help="AFT time samples N >= 2H+1 (overrides the scene)")
+    fo.add_argument("--method", choices=METHODS, default="full", help="model reduction (default: full order)")
+    fo.add_argument("--modes", type=int, default=defaults.ROM_MODES)
+    fo.add_argument("--tvd", type=int, default=defaults.ROM_TVD)
+    fo.add_argument("--quiet", action="store_true")
+    _set_arg(fo)
+    fo.set_defaults(func=cmd_force)
     ex = sub.add_parser("export", help="ParaView files (VTU) of a result folder at one branch point")
     ex.add_argument("folder", help="a folder written by `jointfem frf`")
     grp = ex.add_mutually_exclusive_group()
