@@ -316,11 +316,15 @@ def software() -> dict:
     import platform
     import subprocess
 
+    from importlib.metadata import PackageNotFoundError, version
+
     import scipy
 
-    from . import __version__
-
-    out = {"jointfem": __version__, "python": platform.python_version(), "numpy": np.__version__,
+    try:
+        mine = version("jointfem")
+    except PackageNotFoundError:  # run from a source tree that was not installed
+        mine = "unknown"
+    out = {"jointfem": mine, "python": platform.python_version(), "numpy": np.__version__,
            "scipy": scipy.__version__}
     try:
         root = Path(__file__).resolve().parents[1]
