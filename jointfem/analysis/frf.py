@@ -44,8 +44,9 @@ class SweepIncomplete(ContinuationError):
     """A sweep that stopped before omega_end (a stall, a budget, Ctrl-C): ``frf`` holds the points
     converged before it, with info["status"] = "incomplete" and info["stop_reason"]."""
 
-    def __init__(self, message: str, *, frf: FrequencyResponse, interrupted: bool = False):
-        super().__init__(message, points=[], interrupted=interrupted)
+    def __init__(self, message: str, *, frf: FrequencyResponse, points: list | None = None,
+                 interrupted: bool = False):
+        super().__init__(message, points=points, interrupted=interrupted)
         self.frf = frf
 
 
@@ -212,7 +213,7 @@ def compute_frf(model: Structure | Reduction, options: SweepOptions, *,
         pair_names=layout.pair_names, info=info,
     )
     if stopped is not None:  # (the continuation's lam is omega here)
-        raise SweepIncomplete(info["stop_reason"], frf=frf, interrupted=stopped.interrupted)
+        raise SweepIncomplete(info["stop_reason"], frf=frf, points=points, interrupted=stopped.interrupted)
     return frf
 
 
