@@ -103,6 +103,50 @@ def _link_matrix(links, index, n) -> sp.csr_matrix:
     return sp.csr_matrix((vals, (rows, cols)), shape=(n, n))
 
 
+def force_vectors(forces, index: dict, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(fc, fs, f0) of ForceSpecs on named DOFs: f = fc cos(omega t) + fs sin(omega t) + f0, N."""
+    fc, fs, f0 = np.zeros(n), np.zeros(n), np.zeros(n)
+    for f in forces:
+        fc[index[f.dof]] += f.amplitude * np.cos(f.phase)
+        fs[index[f.dof]] += f.amplitude * np.sin(f.phase)
+        f0[index[f.dof]] += f.static
+    return fc, fs, f0
+
+
+def gap_operator(components: list[list[tuple[str, str]]], index: dict, n: int) -> sp.csr_matrix:
+    """The gap operator of elements whose components join DOF a to DOF b (or ground): row
+    (element, component) holds g = u_a - u_b."""
+    m = len(components[0])
+    rows, cols, vals = [], [], []
+    for p, comps in enumerate(components):
+        for c, (a, b) in enumerate(comps):
+            rows.append(p * m + c)
+            cols.append(index[a])
+            vals.append(1.0)
+            if b != GROUND:
+                rows.append(p * m + c)
+                cols.append(index[b])
+                vals.append(-1.0)
+    return sp.csr_matrix((vals, (rows, cols)), shape=(len(components) * m, n))
+
+
+def jenkins_groups(elements: list, components: list[list[tuple[str, str]]], names: list[str], index: dict,
+                   n: int) -> list[ContactGroup]:
+    """Jenkins pairs (anything with kt, kn, mu, N0 and tangential/normal axes or DOF pairs), one
+    group per (number of tangential components, normal or not), their components as DOF pairs."""
+    groups: dict[tuple[int, bool], list[int]] = {}
+    for i, e in enumerate(elements):
+        groups.setdefault((len(e.tangential), e.normal is not None), []).append(i)
+    out = []
+    for (nt, has_normal), idx in groups.items():
+        es = [elements[i] for i in idx]
+        pairs = JenkinsPairs(kt=[e.kt for e in es], kn=[e.kn for e in es], mu=[e.mu for e in es],
+                             N0=[e.N0 for e in es], num_tangential=nt, has_normal=has_normal)
+        out.append(ContactGroup(pairs, gap_operator([components[i] for i in idx], index, n),
+                                names=tuple(names[i] for i in idx)))
+    return out
+
+
 def create_lumped(spec: LumpedSpec) -> Structure:
     names = dof_names(spec)
     index = {nm: i for i, nm in enumerate(names)}
@@ -110,48 +154,16 @@ def create_lumped(spec: LumpedSpec) -> Structure:
     M = sp.diags(np.array([m.m for m in spec.masses for _ in m.dofs], dtype=float)).tocsr()
     K = _link_matrix(spec.springs, index, n)
     D = _link_matrix(spec.dampers, index, n)
-    fc, fs, f0 = np.zeros(n), np.zeros(n), np.zeros(n)
-    for f in spec.forces:
-        fc[index[f.dof]] += f.amplitude * np.cos(f.phase)
-        fs[index[f.dof]] += f.amplitude * np.sin(f.phase)
-        f0[index[f.dof]] += f.static
-    groups: dict[tuple[int, bool], list[JenkinsSpec]] = {}
-    for j in spec.jenkins:
-        groups.setdefault((len(j.tangential), j.normal is not None), []).append(j)
-    contacts = []
-    for (nt, has_normal), elems in groups.items():
-        m = nt + int(has_normal)
-        rows, cols, vals = [], [], []
-        for p, j in enumerate(elems):
-            axes = list(j.tangential) + ([j.normal] if has_normal else [])
-            for a, ax in enumerate(axes):
-                rows.append(p * m + a)
-                cols.append(index[f"{j.a}.{ax}"])
-                vals.append(1.0)
-                if j.b != GROUND:
-                    rows.append(p * m + a)
-                    cols.append(index[f"{j.b}.{ax}"])
-                    vals.append(-1.0)
-        gap = sp.csr_matrix((vals, (rows, cols)), shape=(len(elems) * m, n))
-        pairs = JenkinsPairs(kt=[j.kt for j in elems], kn=[j.kn for j in elems], mu=[j.mu for j in elems],
-                             N0=[j.N0 for j in elems], num_tangential=nt, has_normal=has_normal)
-        contacts.append(ContactGroup(pairs, gap, names=tuple(f"{j.a}-{j.b}" for j in elems)))
+    fc, fs, f0 = force_vectors(spec.forces, index, n)
+    comps = [[(f"{j.a}.{ax}", GROUND if j.b == GROUND else f"{j.b}.{ax}")
+              for ax in list(j.tangential) + ([j.normal] if j.normal is not None else [])] for j in spec.jenkins]
+    contacts = jenkins_groups(list(spec.jenkins), comps, [f"{j.a}-{j.b}" for j in spec.jenkins], index, n)
     for law, elems in ((CubicSprings(k3=[c.value for c in spec.cubic]) if spec.cubic else None, spec.cubic),
                        (UnilateralSprings(k=[u.k for u in spec.unilateral], gap=[u.gap for u in spec.unilateral])
                         if spec.unilateral else None, spec.unilateral)):
-        if law is None:
-            continue
-        rows, cols, vals = [], [], []
-        for p, e in enumerate(elems):  # g = u_a - u_b, one component per element
-            rows.append(p)
-            cols.append(index[e.a])
-            vals.append(1.0)
-            if e.b != GROUND:
-                rows.append(p)
-                cols.append(index[e.b])
-                vals.append(-1.0)
-        gap = sp.csr_matrix((vals, (rows, cols)), shape=(len(elems), n))
-        contacts.append(ContactGroup(law, gap, names=tuple(f"{law.name}:{e.a}-{e.b}" for e in elems)))
+        if law is not None:  # g = u_a - u_b, one component per element
+            contacts.append(ContactGroup(law, gap_operator([[(e.a, e.b)] for e in elems], index, n),
+                                         names=tuple(f"{law.name}:{e.a}-{e.b}" for e in elems)))
     outputs = {nm: index[nm] for nm in spec.outputs}
     return Structure(K=K, M=M, D=D, fc=fc, fs=fs, contacts=tuple(contacts), dof_names=names, outputs=outputs,
                      info={"kind": "lumped"}, f0=f0 if np.any(f0) else None)

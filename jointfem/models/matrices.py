@@ -16,9 +16,8 @@ import numpy as np
 import scipy.io as sio
 import scipy.sparse as sp
 
-from ..contact.jenkins import JenkinsPairs
-from .lumped import GROUND
-from .structure import ContactGroup, Structure
+from .lumped import force_vectors, jenkins_groups
+from .structure import Structure
 
 
 class MatrixFileError(ValueError):
@@ -82,32 +81,10 @@ def create_matrices(spec: MatricesSpec) -> Structure:
     names = spec.dof_names
     index = {nm: i for i, nm in enumerate(names)}
     n = len(names)
-    fc, fs, f0 = np.zeros(n), np.zeros(n), np.zeros(n)
-    for f in spec.forces:
-        fc[index[f.dof]] += f.amplitude * np.cos(f.phase)
-        fs[index[f.dof]] += f.amplitude * np.sin(f.phase)
-        f0[index[f.dof]] += f.static
-    groups: dict[tuple[int, bool], list[DofPairSpec]] = {}
-    for j in spec.jenkins:
-        groups.setdefault((len(j.tangential), j.normal is not None), []).append(j)
-    contacts = []
-    for (nt, has_normal), elems in groups.items():
-        m = nt + int(has_normal)
-        rows, cols, vals = [], [], []
-        for p, j in enumerate(elems):
-            for c, (a, b) in enumerate(list(j.tangential) + ([j.normal] if has_normal else [])):
-                rows.append(p * m + c)
-                cols.append(index[a])
-                vals.append(1.0)
-                if b != GROUND:
-                    rows.append(p * m + c)
-                    cols.append(index[b])
-                    vals.append(-1.0)
-        gap = sp.csr_matrix((vals, (rows, cols)), shape=(len(elems) * m, n))
-        pairs = JenkinsPairs(kt=[j.kt for j in elems], kn=[j.kn for j in elems], mu=[j.mu for j in elems],
-                             N0=[j.N0 for j in elems], num_tangential=nt, has_normal=has_normal)
-        contacts.append(ContactGroup(pairs, gap, names=tuple(f"{j.tangential[0][0]}-{j.tangential[0][1]}"
-                                                             for j in elems)))
+    fc, fs, f0 = force_vectors(spec.forces, index, n)
+    comps = [list(j.tangential) + ([j.normal] if j.normal is not None else []) for j in spec.jenkins]
+    contacts = jenkins_groups(list(spec.jenkins), comps, [f"{j.tangential[0][0]}-{j.tangential[0][1]}"
+                                                          for j in spec.jenkins], index, n)
     return Structure(K=spec.K, M=spec.M, D=spec.D, fc=fc, fs=fs, contacts=tuple(contacts), dof_names=names,
                      outputs={nm: index[nm] for nm in spec.outputs}, info={"kind": "matrices"},
                      f0=f0 if np.any(f0) else None)
