@@ -172,14 +172,24 @@ def compare(structure: Structure, specs: list[MethodSpec], sweep, *, output: str
     results = []
     ref = None
     for spec, (model, offline, fe) in zip(specs, models):
+        on_point = None
         if progress:
             progress(spec.label)
+            seen = {"n": 0, "t": time.monotonic()}
+
+            def on_point(point, label=spec.label, seen=seen):
+                # a line every 10 s within a method (the exact reference on the 3D lap joint ran
+                # for 5.7 minutes with no word before)
+                seen["n"] += 1
+                if time.monotonic() - seen["t"] > 10.0:
+                    seen["t"] = time.monotonic()
+                    progress(f"{label}: {seen['n']} points, omega = {point.lam:.6g} rad/s")
         t0 = time.perf_counter()
         try:
             frf, times = None, []
             for _ in range(repeats if ref is not None else 1):
                 t1 = time.perf_counter()
-                run = compute_frf(model, sweep if ref is not None else ref_sweep)
+                run = compute_frf(model, sweep if ref is not None else ref_sweep, callback=on_point)
                 times.append(time.perf_counter() - t1)
                 if frf is None:
                     frf = run
