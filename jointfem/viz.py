@@ -99,7 +99,8 @@ def dominant(data: dict) -> np.ndarray:
 # ---- matplotlib: pairs against frequency ---------------------------------------------------
 
 def plot_state_map(data: dict, path: Path, *, title: str = "") -> Picture:
-    """Every pair (rows) at every branch point (columns at its omega), coloured by its dominant state."""
+    """Every pair (rows) at every branch point (columns at its frequency, Hz, as in frf.png),
+    coloured by its dominant state."""
     from matplotlib.colors import ListedColormap
     from matplotlib.patches import Patch
 
@@ -111,11 +112,11 @@ def plot_state_map(data: dict, path: Path, *, title: str = "") -> Picture:
     fig, ax = plt.subplots(figsize=(8, 1.6 + 0.12 * min(P, 60)))
     omega = data["omega"]
     order = np.arange(omega.size)
-    x = np.repeat(omega[order], P)
+    x = np.repeat(omega[order] / (2 * np.pi), P)  # Hz, as frf.png
     y = np.tile(np.arange(P), omega.size)
     ax.scatter(x, y, c=dom[order].ravel(), cmap=ListedColormap(STATE_COLORS), vmin=-0.5, vmax=2.5,
                marker="s", s=max(4.0, 300.0 / max(P, 1)), linewidths=0)
-    ax.set_xlabel("omega [rad/s]")
+    ax.set_xlabel("frequency [Hz]")
     ax.set_ylabel("contact pair")
     shown = tuple(int(k) for k in np.unique(dom))
     labels = [STATE_NAMES[k] for k in range(3)]
