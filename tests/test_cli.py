@@ -189,9 +189,10 @@ def test_ctrl_c_keeps_the_points_and_exits_130(tmp_path):
         counts = re.findall(rb"points=(\d+)", b"".join(seen))
         return int(counts[-1]) if counts else 0
 
-    while points() < 20 and p.poll() is None and time.monotonic() - t0 < 120:  # the sweep is under way
+    # the sweep is under way (on a fresh clone numba first compiles its kernels: up to minutes on a busy machine)
+    while points() < 20 and p.poll() is None and time.monotonic() - t0 < 900:
         time.sleep(0.05)
-    assert p.poll() is None, b"".join(seen).decode()[-2000:]
+    assert p.poll() is None and points() >= 20, b"".join(seen).decode()[-2000:]
     p.send_signal(signal.SIGINT)
     p.wait(timeout=60)
     reader.join(timeout=10)
