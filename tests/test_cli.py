@@ -1,5 +1,6 @@
 """``jointfem frf`` writes files a user can open, with the promised contents."""
 import csv
+import os
 import json
 import re
 import subprocess
@@ -174,8 +175,12 @@ def test_ctrl_c_keeps_the_points_and_exits_130(tmp_path):
 
     scene = _sdof_scene(tmp_path, "ds_max = 1e-4\nds0 = 1e-4\nmax_points = 100000\n")
     out = tmp_path / "out"
+    # env: Python's view of the environment.  Once an earlier test has imported petsc4py, this
+    # process is an MPI singleton whose C environment holds Open MPI's variables; a child that
+    # inherits them initialises MPI too, and Open MPI then takes SIGINT (the test failed only in the
+    # full suite).
     p = subprocess.Popen([sys.executable, "-m", "jointfem", "frf", str(scene), "--out", str(out)],
-                         stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=dict(os.environ))
     seen = []
 
     def read():
