@@ -90,7 +90,7 @@ def _solve(problem, omega):
     x0 = problem.initial_guess(omega)
     s = problem.scales(0.5, 1.0)
     x, _ = solve_newton(newton_system(problem), x0, omega, x_scale=s.x, r_scale=s.r,
-                        options=NewtonOptions(tol=1e-12, max_iter=60))
+                        options=NewtonOptions(tol=1e-12, max_iter=60), select=problem.unknowns())
     return x
 
 

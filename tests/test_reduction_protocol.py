@@ -50,7 +50,12 @@ def test_every_reduction_offers_a_problem_and_reconstructs(method):
     pb = create_problem(rom, h)
     assert isinstance(pb, Problem)
     x = pb.initial_guess(2150.0)
-    assert x.shape == (pb.num_unknowns,)
+    assert x.shape == (pb.num_coefficients,) == (pb.layout.num_coords * h.num_hc,)
+    sel = pb.unknowns()
+    n = x.size if sel is None else sel.size
+    assert pb.num_unknowns == n
+    if method == "penalty":  # all stuck at the start: modes only, the 6 internal variables (3 pairs, t and n) no unknowns
+        assert n == 6 * h.num_hc and x.size == (6 + 6) * h.num_hc
     sc = pb.scales(2100.0, 2250.0)
     assert isinstance(sc, Scales) and sc.x.shape == x.shape and np.all(sc.x > 0)
     # the residual's scale is the largest force on the solved coordinates: the physical 1 N on the
@@ -59,7 +64,7 @@ def test_every_reduction_offers_a_problem_and_reconstructs(method):
     assert sc.r == pytest.approx(force, rel=1e-12) or method == "penalty"  # penalty: p rows carry no force
     assert 0 < sc.r <= force * (1 + 1e-12)
     ev = pb.evaluate(x, 2150.0)
-    assert ev.J.shape == (x.size, x.size) and ev.dR_dlam.shape == x.shape
+    assert ev.J.shape == (n, n) and ev.dR_dlam.shape == ev.R.shape == (n,)
     rec = pb.record(x, 2150.0, ev)
     assert isinstance(rec, PointRecord) and rec.states.shape == (h.N, s.num_pairs)
     assert rec.pair_summary.shape == (s.num_pairs, 3)

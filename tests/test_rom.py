@@ -8,8 +8,8 @@ import pytest
 import scipy.sparse as sp
 
 from jointfem.contact.jenkins import compute_aft
-from jointfem.continuation.arclength import ContinuationOptions, solve_newton
-from jointfem.analysis.frf import SweepOptions, compute_frf
+from jointfem.continuation.arclength import ContinuationOptions, NewtonOptions, solve_newton
+from jointfem.analysis.frf import SweepOptions, compute_frf, create_problem
 from jointfem.hbm.problem import newton_system
 from jointfem.harmonics import Harmonics
 from jointfem.hbm.residual import HBMResidual
@@ -83,7 +83,7 @@ def test_penalty_complete_basis_is_the_full_model():
     full = HBMResidual(s, h)
     rom = build_rom(s, "penalty", RomOptions(modes=s.num_dofs))
     prob = PenaltyProblem(rom, h)
-    prob.mask[:] = True
+    prob.restore(np.ones(rom.num_comp, bool))
     x_scale = np.ones(full.num_unknowns)
     for omega, opens in ((1700.0, True), (1640.0, False)):  # at 1700 rad/s it is open a quarter period
         U, _ = solve_newton(newton_system(full),
@@ -100,20 +100,25 @@ def test_penalty_complete_basis_is_the_full_model():
 
 
 def test_penalty_jacobian_matches_finite_differences():
+    """The Jacobian of the active set's system, by central differences in its unknowns; it has
+    (modes + TVDs + active components) x (2H + 1) rows, and the inactive coefficients are no unknowns."""
     s = beam(3.0)
     h = Harmonics(3, 64)
     rom = build_rom(s, "penalty", RomOptions(modes=8, tvd=2))
     prob = PenaltyProblem(rom, h)
-    prob.mask[:] = [True, False, True, True, False, False]  # pair 0 tangential, pair 1 both: mixed
+    prob.restore(np.array([True, False, True, True, False, False]))  # pair 0 tangential, pair 1 both: mixed
+    sel = prob.unknowns()
+    assert prob.num_unknowns == sel.size == (8 + 2 + 3) * h.num_hc
     rng = np.random.default_rng(3)
-    U = prob.initial_guess(1690.0) * 40 + 1e-6 * rng.standard_normal(prob.num_unknowns)
+    U = np.zeros(prob.num_coefficients)
+    U[sel] = prob.initial_guess(1690.0)[sel] * 40 + 1e-6 * rng.standard_normal(sel.size)
     ev = prob.evaluate(U, 1690.0)
     J = np.asarray(ev.J)
+    assert J.shape == (sel.size, sel.size) and ev.R.shape == (sel.size,)
     eps = 1e-7 * np.abs(U).max()
-    cols = rng.choice(U.size, 25, replace=False)
-    for c in cols:
+    for c in rng.choice(sel.size, 25, replace=False):
         dU = np.zeros_like(U)
-        dU[c] = eps
+        dU[sel[c]] = eps
         fd = (prob.evaluate(U + dU, 1690.0, jacobian=False).R - prob.evaluate(U - dU, 1690.0, jacobian=False).R) / (2 * eps)
         assert np.abs(fd - J[:, c]).max() <= 1e-6 * np.abs(J).max() + 1e-6 * np.abs(fd).max()
 
@@ -341,3 +346,98 @@ def test_chord_error_estimate_bounds_the_reference_polyline(ds_max):
     true = polyline_distance(P, Q)
     assert true > 1e-3  # the coarse polyline does stray
     assert 0.5 * true <= chord_error_estimate(coarse, "m.x") <= 5.0 * true
+
+
+def _two_joints():
+    """Two masses (x, z) on springs to ground, coupled, each held by a 2D Jenkins pair to ground:
+    pair a (slip force 0.3 N, N0 = 1 N) slips and lifts off near 1.8 rad/s under the forcing,
+    pair b (5 N) sticks throughout.  Stuck frequencies 1.41, 1.73, 1.73, 2 rad/s."""
+    from jointfem.models.lumped import ForceSpec, JenkinsSpec, LinkSpec, LumpedSpec, MassSpec, create_lumped
+    return create_lumped(LumpedSpec(
+        masses=(MassSpec("a", 1.0, ("x", "z")), MassSpec("b", 1.0, ("x", "z"))),
+        springs=tuple(LinkSpec(f"{m}.{d}", "ground", 1.0) for m in "ab" for d in "xz")
+        + (LinkSpec("a.x", "b.x", 0.5), LinkSpec("a.z", "b.z", 0.5)),
+        dampers=tuple(LinkSpec(f"{m}.{d}", "ground", 0.05) for m in "ab" for d in "xz"),
+        jenkins=(JenkinsSpec("a", "ground", ("x",), "z", kt=1.0, kn=2.0, mu=0.3, N0=1.0),
+                 JenkinsSpec("b", "ground", ("x",), "z", kt=1.0, kn=2.0, mu=1.0, N0=5.0)),
+        forces=(ForceSpec("a.x", 0.5), ForceSpec("a.z", 0.4)), outputs=("a.x", "b.x")))
+
+
+def _solve_grown(prob, omega):
+    """Newton at omega in the problem's unknowns, growing the active set as the continuation does."""
+    sc = prob.scales(1.0, 2.6)
+
+    def solve(x0):
+        return solve_newton(newton_system(prob), x0, omega, x_scale=sc.x, r_scale=sc.r,
+                            options=NewtonOptions(tol=1e-12, max_iter=60), select=prob.unknowns())[0]
+    z = solve(prob.initial_guess(omega))
+    for _ in range(5):
+        if prob.adaptation is None or not prob.after_converge(z, omega):
+            return z
+        z = solve(z)
+    raise AssertionError("the active set kept growing")
+
+
+def test_penalty_partial_active_set_is_exact_and_a_wrong_pp_block_is_not():
+    """Every mode kept, one pair slipping and lifting off, the other stuck: the penalty ROM solves
+    modes + the two active components only ((4 + 2) x 11 unknowns, not (4 + 4) x 11), and its
+    displacements are the full model's to 1e-10 of their size (measured 8e-16: both are solved to
+    max|R| < 1e-12 of the force).  The same with the active p-p
+    stiffness block scaled by 1.5 misses by more than 1 %: the test sees a wrong block."""
+    s = _two_joints()
+    h = Harmonics(5, 256)
+    omega = 1.8
+    full = create_problem(s, h)
+    U = _solve_grown(full, omega)
+    st = full.evaluate(U, omega).contact[0].state_t
+    assert (st[:, 0] == 1).any() and (st[:, 0] == 2).any() and (st[:, 1] == 0).all()  # a slips and opens, b sticks
+    rom = build_rom(s, "penalty", RomOptions(modes=s.num_dofs))
+    prob = PenaltyProblem(rom, h)
+    z = _solve_grown(prob, omega)
+    assert prob.mask.tolist() == [True, True, False, False]
+    assert prob.num_unknowns == (4 + 2) * h.num_hc and prob.evaluate(z, omega).J.shape == (66, 66)
+    u = (z.reshape(h.num_hc, -1) @ rom.T.T).ravel()
+    assert np.abs(u - U).max() < 1e-10 * np.abs(U).max()
+
+    ps = rom.p_slots[:2]
+    rom.K[np.ix_(ps, ps)] *= 1.5
+    rom._cache.clear()
+    z = _solve_grown(PenaltyProblem(rom, h), omega)
+    u = (z.reshape(h.num_hc, -1) @ rom.T.T).ravel()
+    assert np.abs(u - U).max() > 1e-2 * np.abs(U).max()
+
+
+def test_penalty_solves_only_the_active_set_along_a_branch(monkeypatch):
+    """A sweep through slip and lift-off and back to stick: every Jacobian Newton solves has
+    (modes + active components) x (2H + 1) rows at that moment, the size grows and shrinks along
+    the branch (components are activated and released), each point records the unknowns it was
+    solved in, and every point is the full model's solution (full-order Newton from it moves it
+    by less than 1e-8 of its size)."""
+    s = _two_joints()
+    h = Harmonics(5, 256)
+    rom = build_rom(s, "penalty", RomOptions(modes=4))
+    calls = []
+    evaluate = PenaltyProblem.evaluate
+
+    def spy(self, U, omega, *, jacobian=True):
+        ev = evaluate(self, U, omega, jacobian=jacobian)
+        if jacobian:
+            calls.append((ev.J.shape, self.size))
+        return ev
+
+    monkeypatch.setattr(PenaltyProblem, "evaluate", spy)
+    frf = compute_frf(rom, SweepOptions(1.0, 2.6, h))
+    monkeypatch.undo()
+    assert len(calls) > 100 and all(shape == (n * h.num_hc,) * 2 for shape, n in calls)
+    sizes = frf.info["arrays"]["rom_size"]
+    np.testing.assert_array_equal(frf.info["arrays"]["unknowns"], sizes * h.num_hc)
+    assert set(sizes) == {4, 5, 6}  # from all stuck to pair a slipping and lifting off
+    shrinks = np.flatnonzero(np.diff(sizes) < 0)
+    assert shrinks.size >= 1 and frf.info["active_set_events"]["released"] >= 1  # release (hysteresis) happens
+    assert frf.info["num_unknowns"] == 6 * h.num_hc
+    fp = create_problem(s, h)
+    sc = fp.scales(1.0, 2.6)
+    for U, w in zip(frf.U, frf.omega):
+        u = (U.reshape(h.num_hc, -1) @ rom.T.T).ravel()
+        uf, _ = solve_newton(newton_system(fp), u, w, x_scale=sc.x, r_scale=sc.r, options=NewtonOptions(tol=1e-12))
+        assert np.abs(uf - u).max() < 1e-8 * np.abs(uf).max()

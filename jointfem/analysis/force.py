@@ -36,13 +36,16 @@ class ForceScaled(Problem):
         self._minus_F = None
 
     @property
-    def num_unknowns(self) -> int:
-        return self.inner.num_unknowns
+    def num_coefficients(self) -> int:
+        return self.inner.num_coefficients
+
+    def unknowns(self):
+        return self.inner.unknowns()
 
     def minus_force(self) -> np.ndarray:
         """R(0) = -F, taken again after the inner problem changed (the penalty ROM's active set)."""
         if self._minus_F is None:
-            self._minus_F = self.inner.evaluate(np.zeros(self.num_unknowns), self.omega, jacobian=False).R.copy()
+            self._minus_F = self.inner.evaluate(np.zeros(self.num_coefficients), self.omega, jacobian=False).R.copy()
         return self._minus_F
 
     def evaluate(self, x, lam, *, jacobian=True) -> Evaluation:
@@ -78,11 +81,17 @@ class _AtOmega(Adaptive):
         self.outer = outer
         self.max_redo = outer.inner.adaptation.max_redo
 
-    def before_step(self, x, lam):
-        x_new = self.outer.inner.adaptation.before_step(x, self.outer.omega)
-        if x_new is not None:
+    def unknowns(self):
+        return self.outer.inner.adaptation.unknowns()
+
+    def state_of(self, x):
+        return self.outer.inner.adaptation.state_of(x)
+
+    def before_step(self, x, lam) -> bool:
+        changed = self.outer.inner.adaptation.before_step(x, self.outer.omega)
+        if changed:
             self.outer._minus_F = None
-        return x_new
+        return changed
 
     def after_converge(self, x, lam) -> bool:
         changed = self.outer.inner.adaptation.after_converge(x, self.outer.omega)
@@ -136,11 +145,13 @@ def compute_force_response(model: Structure | Reduction, omega: float, harmonics
     points = continue_branch(newton_system(problem), problem.initial_guess(scale_start), scale_start, scale_end,
                              x_scale=sc.x, lam_scale=scale_end - scale_start, r_scale=sc.r, options=cont,
                              callback=callback, adapt=problem.adaptation, stats=steps,
-                             extra=lambda x, lam: problem.record(x, lam, problem.evaluate(x, lam, jacobian=False)))
+                             extra=lambda x, lam: replace(problem.record(x, lam, problem.evaluate(x, lam, jacobian=False)),
+                                                          unknowns=problem.num_unknowns))
     records = [p.extra for p in points]
-    info = {"continuation": steps, "num_unknowns": problem.num_unknowns, "time_s": time.perf_counter() - t0,
+    unknowns = np.array([r.unknowns for r in records])
+    info = {"continuation": steps, "num_unknowns": int(unknowns.max()), "time_s": time.perf_counter() - t0,
             "arrays": {"residual": np.array([p.residual for p in points]),
-                       "rom_size": np.array([r.size for r in records]),
+                       "rom_size": np.array([r.size for r in records]), "unknowns": unknowns,
                        "pair_energy_J": np.array([r.pair_summary[:, 0] for r in records])}}
     return ForceResponse(omega, np.array([p.lam for p in points]), np.array([p.x for p in points]),
                          np.array([r.states for r in records], dtype=np.int8), harmonics,

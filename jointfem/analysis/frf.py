@@ -86,19 +86,22 @@ def compute_frf(model: Structure | Reduction, options: SweepOptions, *,
     t0 = time.perf_counter()
     problem = create_problem(model, h)
     nh = h.num_hc
-    q = problem.num_unknowns // nh
+    q = problem.num_coefficients // nh
     scales = problem.scales(options.omega_start, options.omega_end)
     lam_scale = abs(options.omega_end - options.omega_start)
     t_setup = time.perf_counter() - t0
 
     # Hill's method needs the Jacobian at the point, which the continuation has just evaluated for
     # the tangent (the problem returns it again from its last evaluation)
+    # (decided once, on the largest system the problem can have: the penalty ROM's grows)
     stability = (options.stability if options.stability is not None
-                 else problem.num_unknowns <= options.stability_auto_unknowns)
+                 else problem.num_coefficients <= options.stability_auto_unknowns)
 
     def record(U, omega):
+        # (called as the continuation accepts a point: the unknowns now are those it was solved in)
         ev = problem.evaluate(U, omega, jacobian=stability)
-        rec = replace(problem.record(U, omega, ev), harmonic_error=top_harmonic_share(ev.contact, h))
+        rec = replace(problem.record(U, omega, ev), harmonic_error=top_harmonic_share(ev.contact, h),
+                      unknowns=problem.num_unknowns)
         if stability:
             rec = replace(rec, stability=max_real_part(problem, omega, ev))
         return rec
@@ -119,14 +122,20 @@ def compute_frf(model: Structure | Reduction, options: SweepOptions, *,
         cont = replace(cont, max_rel_change=1.0)
     U0, omega0, before, heading = problem.initial_guess(options.omega_start), options.omega_start, [], None
     if resume is not None:
-        if resume.U.shape[1] != problem.num_unknowns or resume.omega.size < 2:
-            raise ValueError(f"resume: a branch of {resume.U.shape[1]} unknowns and {resume.omega.size} points "
-                             f"cannot go on in a problem of {problem.num_unknowns} unknowns")
+        if resume.U.shape[1] != problem.num_coefficients or resume.omega.size < 2:
+            raise ValueError(f"resume: a branch of {resume.U.shape[1]} coefficients and {resume.omega.size} points "
+                             f"cannot go on in a problem of {problem.num_coefficients} coefficients")
         U0, omega0 = resume.U[-1], float(resume.omega[-1])
         heading = (resume.U[-1] - resume.U[-2], resume.omega[-1] - resume.omega[-2]), resume.ds_next
-        before = [ContinuationPoint(resume.U[i], float(resume.omega[i]), int(resume.iterations[i]), 0.0,
-                                    record(resume.U[i], float(resume.omega[i])), residual=float(resume.residual[i]))
-                  for i in range(resume.omega.size - 1)]
+        before = []
+        for i in range(resume.omega.size - 1):
+            if problem.adaptation is not None:  # (each point is recorded in the state it was solved in)
+                problem.adaptation.restore(problem.adaptation.state_of(resume.U[i]))
+            before.append(ContinuationPoint(resume.U[i], float(resume.omega[i]), int(resume.iterations[i]), 0.0,
+                                            record(resume.U[i], float(resume.omega[i])),
+                                            residual=float(resume.residual[i])))
+        if problem.adaptation is not None:
+            problem.adaptation.restore(problem.adaptation.state_of(U0))
     t1 = time.perf_counter()
     steps = {}
     stopped = None
@@ -150,7 +159,10 @@ def compute_frf(model: Structure | Reduction, options: SweepOptions, *,
         peaks = locate_peaks(problem, X, omega, residual, records, layout.outputs, scales=scales,
                              lam_scale=lam_scale, newton=cont.newton)
     t_online = time.perf_counter() - t1
-    info = {"time_setup_s": t_setup, "time_online_s": t_online, "num_unknowns": problem.num_unknowns,
+    unknowns = np.array([r.unknowns for r in records])
+    # the largest system Newton solved on the branch (the penalty ROM's changes along it: per point
+    # in arrays["unknowns"])
+    info = {"time_setup_s": t_setup, "time_online_s": t_online, "num_unknowns": int(unknowns.max()),
             "newton_tol": cont.newton.tol, "continuation": steps,
             # achieved max|R| / max|F| per point: below the Newton tol, or below kink_tol where a
             # root on a kink of the sampled law stalled Newton (docs/theory.md)
@@ -158,6 +170,7 @@ def compute_frf(model: Structure | Reduction, options: SweepOptions, *,
                        # the step the continuation takes from each point (compute_frf's ``resume``)
                        "ds_next": np.array([p.ds_next for p in points]),
                        "rom_size": np.array([r.size for r in records]),
+                       "unknowns": unknowns,
                        # per point and pair: dissipated energy per cycle (J), tangential relative
                        # displacement amplitude (m), peak normal force (N); ContactLaw.summary
                        "pair_energy_J": np.array([r.pair_summary[:, 0] for r in records]),
@@ -190,7 +203,7 @@ def compute_frf(model: Structure | Reduction, options: SweepOptions, *,
     elif options.stability is False:
         info["stability"] = "not computed (stability off)"
     elif not stability:
-        info["stability"] = (f"not computed: {problem.num_unknowns} unknowns > {options.stability_auto_unknowns}, "
+        info["stability"] = (f"not computed: {problem.num_coefficients} unknowns > {options.stability_auto_unknowns}, "
                              f"the automatic limit (a dense eigensolve of twice the unknowns per point; "
                              f"--stability on computes it)")
     else:
@@ -239,13 +252,23 @@ def solve_at(model: Structure | Reduction, omega: float, harmonics: Harmonics, *
     scales = problem.scales(omega, omega * (1 + 1e-3))
     U0 = problem.initial_guess(omega) if guess is None else np.asarray(guess, float)
     opts = replace(newton, tol=max(newton.tol, problem.tol_floor))
-    U, it = solve_newton(newton_system(problem), U0, omega, x_scale=scales.x, r_scale=scales.r, options=opts)
+    adapt = problem.adaptation
+    if adapt is not None and guess is not None:
+        adapt.restore(adapt.state_of(U0))  # every coefficient of the guess that is not zero is solved
+    U, it = solve_newton(newton_system(problem), U0, omega, x_scale=scales.x, r_scale=scales.r, options=opts,
+                         select=problem.unknowns())
+    for _ in range(adapt.max_redo if adapt is not None else 0):
+        if not adapt.after_converge(U, omega):  # (the penalty ROM: an inactive pair broke its law)
+            break
+        U, more = solve_newton(newton_system(problem), U, omega, x_scale=scales.x, r_scale=scales.r, options=opts,
+                               select=problem.unknowns())
+        it += more
     ev = problem.evaluate(U, omega, jacobian=False)
     nh = harmonics.num_hc
-    q = problem.num_unknowns // nh
+    q = problem.num_coefficients // nh
     amps = {}
     for name, out in problem.layout.outputs.items():
         c, s_ = U[harmonics.cos(1, q)], U[harmonics.sin(1, q)]
         amps[name] = float(np.hypot(out @ c, out @ s_) if np.ndim(out) else np.hypot(c[out], s_[out]))
     res = float(np.max(np.abs(ev.R)) / np.max(np.abs(scales.r))) if ev.R.size else 0.0
-    return Solution(omega, U, amps, problem.record(U, omega, ev), it, res)
+    return Solution(omega, U, amps, replace(problem.record(U, omega, ev), unknowns=problem.num_unknowns), it, res)

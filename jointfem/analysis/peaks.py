@@ -82,7 +82,8 @@ class _Segments:
             zp = za + t * chord
             adapt = self.problem.adaptation
             for _ in range(adapt.max_redo if adapt is not None else 1):
-                xs, ls, _, res = correct(self.fun, zp[:-1], float(zp[-1]), (chord[:-1], float(chord[-1])), **self.kw)
+                xs, ls, _, res = correct(self.fun, zp[:-1], float(zp[-1]), (chord[:-1], float(chord[-1])), **self.kw,
+                                         select=self.problem.unknowns())
                 self.solves += 1
                 if adapt is None or not adapt.after_converge(xs, ls):
                     break

@@ -51,18 +51,26 @@ class ContinuationError(RuntimeError):
 
 
 class Adaptive:
-    """Hooks of a problem whose equations change along the branch (the penalty ROM's active set).
+    """Hooks of a problem whose equations, and whose unknowns, change along the branch (the penalty
+    ROM's active set).
 
-    ``before_step(x, lam)`` runs before each predictor at the last accepted point; it may change
-    the problem and return a new x there (or None: unchanged).  ``after_converge(x, lam)`` runs
-    on each converged corrector; True means the point broke a condition of the problem, which
-    has been changed, and the step is redone from the last accepted point with the same length.
+    x always has the same length (the problem's coefficients); ``unknowns()`` says which of them
+    are solved now (an index array, or None: all).  The others are zero: the problem's equations
+    hold them there, and Newton does not see them (its system has len(unknowns()) rows).
+    ``before_step(x, lam)`` runs before each predictor at the last accepted point; True means it
+    changed the problem (and perhaps its unknowns: a coefficient that leaves them is zeroed).
+    ``after_converge(x, lam)`` runs on each converged corrector; True means the point broke a
+    condition of the problem, which has been changed, and the step is redone from the last
+    accepted point with the same length.
     """
 
     max_redo: int = 50
 
-    def before_step(self, x, lam):  # pragma: no cover - interface
+    def unknowns(self) -> np.ndarray | None:  # pragma: no cover - interface
         return None
+
+    def before_step(self, x, lam) -> bool:  # pragma: no cover - interface
+        return False
 
     def after_converge(self, x, lam) -> bool:  # pragma: no cover - interface
         return False
@@ -70,6 +78,11 @@ class Adaptive:
     def restore(self, state) -> None:  # pragma: no cover - interface
         """Put the problem back in a state it recorded at a converged point (for solves after the
         branch, e.g. locating a peak between recorded points)."""
+
+    def state_of(self, x):  # pragma: no cover - interface
+        """The state in which every coefficient of x that is not zero is an unknown (for a solve
+        from a point of a branch whose state was not kept: a guess, a resumed run)."""
+        return None
 
 
 @dataclass(frozen=True)
@@ -135,18 +148,52 @@ def _bordered(J, c, t):
     return A
 
 
-def _scaled(fun, x_scale, lam_scale, r_scale):
-    """Wrap fun(x, lam) -> (R, J, dR/dlam) into scaled variables."""
+def _scaled(fun, x_scale, lam_scale, r_scale, space=None):
+    """Wrap fun(x, lam) -> (R, J, dR/dlam) into scaled variables; with a :class:`_Space`, into the
+    scaled unknowns of the space (fun still takes every coefficient)."""
+    if space is not None:
+        x_scale = space.scale
+
     Sx = sp.diags(x_scale) if np.ndim(x_scale) else None
 
     def g(y, mu):
-        R, J, dl = fun(y * x_scale, mu * lam_scale)
+        R, J, dl = fun(y * x_scale if space is None else space.full(y), mu * lam_scale)
+        if R.shape[0] != np.size(y):
+            raise ValueError(f"the problem returned {R.shape[0]} residuals for {np.size(y)} unknowns: "
+                             "an adaptive problem's unknowns (Adaptive.unknowns) were not passed")
         if J is not None:
             J = (J @ Sx) / r_scale if sp.issparse(J) and Sx is not None else J * x_scale / r_scale
             dl = dl * lam_scale / r_scale
         return R / r_scale, J, dl
 
     return g
+
+
+class _Space:
+    """The unknowns solved among the coefficients x (n,): ``select`` (index array; None: all), in
+    the scaled variables y = x[select] / x_scale[select]; the other coefficients are zero."""
+
+    def __init__(self, x_scale: np.ndarray, select: np.ndarray | None):
+        self.x_scale = x_scale
+        self.select = np.arange(x_scale.size) if select is None else np.asarray(select)
+        self.scale = x_scale[self.select]
+
+    def full(self, y: np.ndarray) -> np.ndarray:
+        """The coefficients x of scaled unknowns y."""
+        x = np.zeros(self.x_scale.size)
+        x[self.select] = y * self.scale
+        return x
+
+    def sub(self, x: np.ndarray) -> np.ndarray:
+        """The scaled unknowns of coefficients x."""
+        return x[self.select] / self.scale
+
+    def carry(self, v: np.ndarray, other: "_Space") -> np.ndarray:
+        """A scaled vector of ``other``'s unknowns in this space's (a coordinate scaled the same
+        in both): a coefficient new to this space gets 0, one that left is dropped."""
+        w = np.zeros(self.x_scale.size)
+        w[other.select] = v
+        return w[self.select]
 
 
 def _roundoff(A, z):
@@ -207,32 +254,36 @@ def _damped_newton(F, z0, opts: "NewtonOptions", what: str, lam_of):
 
 
 def solve_newton(fun: Callable, x0: np.ndarray, lam: float, *, x_scale, r_scale: float,
-                 options: NewtonOptions = NewtonOptions()) -> tuple[np.ndarray, int]:
-    """Solve R(x, lam) = 0 at fixed lam.  Returns (x, iterations); raises ConvergenceError."""
-    g = _scaled(fun, x_scale, 1.0, r_scale)
+                 options: NewtonOptions = NewtonOptions(), select: np.ndarray | None = None) -> tuple[np.ndarray, int]:
+    """Solve R(x, lam) = 0 at fixed lam.  Returns (x, iterations); raises ConvergenceError.
+    ``select``: the coefficients of x solved (Adaptive.unknowns; None: all), the others zero."""
+    space = _Space(np.broadcast_to(np.asarray(x_scale, float), np.shape(x0)).copy(), select)
+    g = _scaled(fun, None, 1.0, r_scale, space)
 
     def F(y):
         R, J, _ = g(y, lam)
         return R, J
 
-    y, it, _ = _damped_newton(F, x0 / x_scale, options, "Newton", lambda z: lam)
-    return y * x_scale, it
+    y, it, _ = _damped_newton(F, space.sub(x0), options, "Newton", lambda z: lam)
+    return space.full(y), it
 
 
 def correct(fun: Callable, x_p: np.ndarray, lam_p: float, direction: tuple[np.ndarray, float], *, x_scale,
-            lam_scale: float, r_scale: float, options: NewtonOptions = NewtonOptions()):
+            lam_scale: float, r_scale: float, options: NewtonOptions = NewtonOptions(),
+            select: np.ndarray | None = None):
     """Solve R(x, lam) = 0 on the hyperplane through (x_p, lam_p) normal to ``direction`` = (dx, dlam)
     (in the scaled variables of the continuation), as the corrector of a step does.
+    ``select``: the coefficients of x solved (Adaptive.unknowns; None: all), the others zero.
 
     Returns (x, lam, iterations, achieved max|R|/r_scale); raises ConvergenceError.  This meets
     the branch where it crosses the hyperplane, whether it is a graph over lam there or folds.
     """
-    x_scale = np.broadcast_to(np.asarray(x_scale, float), np.shape(x_p))
-    g = _scaled(fun, x_scale, lam_scale, r_scale)
-    t = np.append(direction[0] / x_scale, direction[1] / lam_scale)
+    space = _Space(np.broadcast_to(np.asarray(x_scale, float), np.shape(x_p)).copy(), select)
+    g = _scaled(fun, None, lam_scale, r_scale, space)
+    t = np.append(space.sub(np.asarray(direction[0], float)), direction[1] / lam_scale)
     t = t / np.linalg.norm(t)
-    y, mu, it, res = _corrector(g, x_p / x_scale, lam_p / lam_scale, t, options, lam_scale)
-    return y * x_scale, mu * lam_scale, it, res
+    y, mu, it, res = _corrector(g, space.sub(x_p), lam_p / lam_scale, t, options, lam_scale)
+    return space.full(y), mu * lam_scale, it, res
 
 
 @dataclass
@@ -313,17 +364,41 @@ def continue_branch(fun: Callable, x0: np.ndarray, lam0: float, lam_end: float, 
     """
     opts = options
     x_scale = np.broadcast_to(np.asarray(x_scale, float), np.shape(x0)).copy()
-    x, it0 = solve_newton(fun, x0, lam0, x_scale=x_scale, r_scale=r_scale, options=opts.newton)
+
+    def unknowns():
+        return None if adapt is None else adapt.unknowns()
+
+    x, it0 = solve_newton(fun, x0, lam0, x_scale=x_scale, r_scale=r_scale, options=opts.newton, select=unknowns())
     for _ in range(Adaptive.max_redo):
         if adapt is None or not adapt.after_converge(x, lam0):
             break
-        x, it = solve_newton(fun, x, lam0, x_scale=x_scale, r_scale=r_scale, options=opts.newton)
+        x, it = solve_newton(fun, x, lam0, x_scale=x_scale, r_scale=r_scale, options=opts.newton,
+                             select=unknowns())
         it0 += it
     else:
         raise ContinuationError(f"the problem kept changing at the start point lam = {lam0:.9g}")
-    g = g_plain = _scaled(fun, x_scale, lam_scale, r_scale)
+    # the unknowns solved now; every step works in them (scaled), every point is kept in x
+    space = _Space(x_scale, unknowns())
+    g_space = _scaled(fun, None, lam_scale, r_scale, space)
+
+    def g_plain(y_, mu_):
+        return g_space(y_, mu_)
+
+    def rebase(y_old, t_old):
+        """The problem changed (Adaptive): its unknowns now, and the last point and the tangent
+        carried into them (a coefficient that joins starts at zero, where it was held: the last
+        point is still a solution; one that leaves was zeroed by the problem)."""
+        nonlocal space, g_space
+        old, space = space, _Space(x_scale, unknowns())
+        g_space = _scaled(fun, None, lam_scale, r_scale, space)
+        if space.select.size == old.select.size and np.array_equal(space.select, old.select):
+            return y_old, t_old
+        t_new = np.append(space.carry(t_old[:-1], old), t_old[-1])
+        return space.carry(y_old, old), t_new / np.linalg.norm(t_new)
+
+    g = g_plain
     t_start = time.monotonic()
-    y, mu = x / x_scale, lam0 / lam_scale
+    y, mu = space.sub(x), lam0 / lam_scale
     mu_end = lam_end / lam_scale
     direction = np.sign(mu_end - mu)
     if direction == 0:
@@ -341,7 +416,7 @@ def continue_branch(fun: Callable, x0: np.ndarray, lam0: float, lam_end: float, 
             t = -t
         ds = opts.ds0
     else:
-        heading = np.append(np.asarray(resume[0][0]) / x_scale, resume[0][1] / lam_scale)
+        heading = np.append(space.sub(np.asarray(resume[0][0], float)), resume[0][1] / lam_scale)
         t, _ = _tangent(J, dl, heading / np.linalg.norm(heading))
         ds = float(np.clip(resume[1], opts.ds_min, opts.ds_max))
     t, orient = _tangent(J, dl, t)
@@ -370,7 +445,7 @@ def continue_branch(fun: Callable, x0: np.ndarray, lam0: float, lam_end: float, 
             nopts = replace(nopts, kink_tol=max(opts.newton.kink_tol, opts.newton.relaxed_kink_tol))
         try:
             y_new, mu_new, it, res = _corrector(g, z_p[:-1], z_p[-1], d, nopts, lam_scale)
-            changed = adapt is not None and adapt.after_converge(y_new * x_scale, mu_new * lam_scale)
+            changed = adapt is not None and adapt.after_converge(space.full(y_new), mu_new * lam_scale)
             if changed:
                 # the problem changed: the tangent at the last accepted point, then the same step again
                 log.debug("step redone at lam=%.6g: the problem changed", mu_new * lam_scale)
@@ -479,12 +554,11 @@ def continue_branch(fun: Callable, x0: np.ndarray, lam0: float, lam_end: float, 
                                                  "undamped resonance that friction cannot hold?)"))
             if opts.time_limit is not None and time.monotonic() - t_start > opts.time_limit:
                 raise stop(f"the time limit of {opts.time_limit:g} s was reached (time_limit)")
-            if adapt is not None and redo == 0:
-                x_new = adapt.before_step(y * x_scale, mu * lam_scale)
-                if x_new is not None:
-                    y = x_new / x_scale
-                    R, J, dl = g(y, mu)
-                    t, orient = _tangent(J, dl, t)
+            if adapt is not None and redo == 0 and adapt.before_step(space.full(y), mu * lam_scale):
+                y, t = rebase(y, t)
+                R, J, dl = g(y, mu)
+                t, _ = _tangent(J, dl, t)
+                t, orient = _tangent(J, dl, t)  # (the orientation of the system it is now)
             d = t
             y_new, mu_new, it, res, t_new, orient_new, changed, failure = attempt(d, ds)
             if failure is not None and opts.corner_steps and ds <= opts.corner_ds:
@@ -501,7 +575,9 @@ def continue_branch(fun: Callable, x0: np.ndarray, lam0: float, lam_end: float, 
                         y_new, mu_new, it, res, t_new, orient_new, changed, failure = out
                         counts["corners_passed"] += not changed
             if failure is None and changed:
+                y, t = rebase(y, t)
                 R, J, dl = g(y, mu)
+                t, _ = _tangent(J, dl, t)
                 t, orient = _tangent(J, dl, t)
                 redo += 1
                 counts["redone_steps"] += 1
@@ -521,7 +597,7 @@ def continue_branch(fun: Callable, x0: np.ndarray, lam0: float, lam_end: float, 
             redo = 0
             turned.clear()
             y, mu, t, orient = y_new, mu_new, t_new, orient_new
-            x = y * x_scale
+            x = space.full(y)
             points.append(ContinuationPoint(x, mu * lam_scale, it, ds, extra(x, mu * lam_scale) if extra else None,
                                             residual=res))
             log.debug("point %d at lam=%.9g: ds %.3g, %d iterations, |y| %.6g", len(points) - 1, mu * lam_scale, ds,

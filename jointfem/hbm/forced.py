@@ -25,26 +25,26 @@ def compute_scales(structure: Structure, omega_start: float, omega_end: float, *
 
 
 def compute_rom_scales(structure: Structure, T: np.ndarray, omega_start: float, omega_end: float, *,
-                       num: int = 101, displacements: np.ndarray | None = None) -> np.ndarray:
+                       num: int = 101, displacements: int = 0) -> np.ndarray:
     """Scale per ROM coordinate: its stuck linear amplitude, but at least the amplitude at which
     its basis vector alone reaches the largest linear displacement of the structure.
 
     A mode far from the range barely moves linearly, yet a joint that slips or opens excites it
     to displacements of the size of the response: scaled by its linear amplitude alone, it
     would dominate the arclength and shrink every step.
-    Coordinates listed in ``displacements`` are displacements themselves (the penalty ROM's
-    internal variables p): their scale is the largest displacement.
+    The last ``displacements`` columns of T are coordinates that are displacements themselves and
+    not coordinates of ``structure`` (the penalty ROM's internal variables p, inactive in its stuck
+    structure): their scale is the largest displacement.
     """
     w = np.linspace(min(omega_start, omega_end), max(omega_start, omega_end), num)
+    q = T.shape[1] - displacements
     X = np.abs(structure.linear_response(w))  # (num, q)
-    top = np.abs(X @ T.T).max()
+    top = np.abs(X @ T[:, :q].T).max()
     if not np.isfinite(top) or top <= 0:
         top = 1.0
-    col = np.abs(T).max(axis=0)
+    col = np.abs(T[:, :q]).max(axis=0)
     zs = np.maximum(X.max(axis=0), top / np.where(col > 0, col, 1.0))
-    if displacements is not None:
-        zs[displacements] = top
-    return zs
+    return np.concatenate([zs, np.full(displacements, top)])
 
 
 class ForcedProblem(Problem):

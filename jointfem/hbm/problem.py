@@ -3,14 +3,20 @@
 A problem is a residual ``R(x, lam) = 0`` in harmonic coefficients ``x`` and one parameter
 ``lam`` (omega in rad/s for a forced response), with everything an analysis needs around it:
 
-* ``num_unknowns``: the length of ``x``, the size of the system Newton solves;
-* ``evaluate(x, lam, *, jacobian)`` -> :class:`Evaluation` (R, dR/dx, dR/dlam, contact results);
+* ``num_coefficients``: the length of ``x`` (``layout.num_coords`` per harmonic block), the same
+  at every point of a branch, so that branches, peaks and resumed runs store one array;
+* ``unknowns()``: which coefficients are solved now (an index array; None: all of them).  The
+  others are zero, held there by the problem's equations (the penalty ROM's inactive internal
+  variables), and take no part in Newton;
+* ``num_unknowns``: how many are solved now: the size of the system Newton solves;
+* ``evaluate(x, lam, *, jacobian)`` -> :class:`Evaluation` (R, dR/dx, dR/dlam, contact results),
+  x being every coefficient and R, the Jacobian and dR/dlam being those of the unknowns;
 * ``initial_guess(lam)``: where the continuation starts (refined by Newton);
 * ``scales(lam_start, lam_end)`` -> :class:`Scales` (per unknown, and the residual's);
 * ``record(x, lam, evaluation)`` -> :class:`PointRecord`: the named data kept per point;
 * ``layout``: what the coordinates are (:class:`Layout`: names, outputs, pairs), for the results;
-* ``adaptation``: None, or the hooks of a problem whose equations change along the branch
-  (:class:`jointfem.continuation.arclength.Adaptive`; the penalty ROM's active set);
+* ``adaptation``: None, or the hooks of a problem whose equations and unknowns change along the
+  branch (:class:`jointfem.continuation.arclength.Adaptive`; the penalty ROM's active set);
 * ``tol_floor``: a Newton tolerance below which this problem's round-off makes no progress;
 * ``branch_info()``: data of the whole branch (e.g. the active-set events);
 * ``hill_operators(lam)`` and ``num_dynamic()``: what Hill's method needs for the stability of a
@@ -50,6 +56,8 @@ class PointRecord:
 
     states: (N, num_pairs) int8, the contact state per time sample and physical pair.
     size: the model's size at the point (for the penalty ROM: modes + TVDs + active components).
+    unknowns: the number of unknowns Newton solved at the point (size x (2H + 1) for an HBM of a
+    model; set by the analysis that solved it).
     pair_summary: (num_pairs, 3): dissipated energy per cycle (J), tangential amplitude (m), peak
     normal force (N), per physical pair (ContactLaw.summary).
     active: the penalty ROM's active components (num_components,) bool, else None.
@@ -61,6 +69,7 @@ class PointRecord:
     size: int
     pair_summary: np.ndarray
     active: np.ndarray | None = None
+    unknowns: int = 0
     stability: float | None = None
     harmonic_error: float | None = None
 
@@ -110,9 +119,19 @@ class Problem(ABC):
     tol_floor: float = 0.0
 
     @property
-    @abstractmethod
+    def num_coefficients(self) -> int:
+        """The length of x: every coefficient of the layout, solved or not."""
+        return self.layout.num_coords * self.harmonics.num_hc
+
+    def unknowns(self) -> np.ndarray | None:
+        """The coefficients solved now (None: every one; an adaptive problem's change)."""
+        return None
+
+    @property
     def num_unknowns(self) -> int:
-        ...
+        """The size of the system Newton solves now."""
+        sel = self.unknowns()
+        return self.num_coefficients if sel is None else int(sel.size)
 
     @abstractmethod
     def evaluate(self, x: np.ndarray, lam: float, *, jacobian: bool = True) -> Evaluation:

@@ -106,18 +106,24 @@ class PenaltyROM(ReducedModel):
     def size_of(self, mask: np.ndarray) -> int:
         return self.num_modes + self.num_tvd + int(np.count_nonzero(mask))
 
+    def coordinates(self, mask: np.ndarray) -> np.ndarray:
+        """The ROM coordinates kept with active components ``mask`` (J,): the modes, the TVDs and
+        the internal variables of the active components (the others are zero, and not unknowns)."""
+        return np.concatenate([np.arange(self.num_modes + self.num_tvd), self.p_slots[np.asarray(mask, bool)]])
+
     def structure_for(self, mask: np.ndarray) -> Structure:
-        """The reduced Structure with active components ``mask`` (J,); inactive p pinned to 0."""
+        """The reduced Structure of active components ``mask`` (J,): its coordinates are
+        ``coordinates(mask)``, modes + TVDs + active components (paper Eq. 14, with the index
+        matrix B keeping the active rows of p)."""
         key = np.asarray(mask, bool).tobytes()
         if key in self._cache:
             return self._cache[key]
-        K, M, D = self.K.copy(), self.M.copy(), self.D.copy()
-        off = self.p_slots[~np.asarray(mask, bool)]
-        for A in (K, M, D):
-            A[off, :] = 0.0
-            A[:, off] = 0.0
-        K[off, off] = self.kc[~np.asarray(mask, bool)]  # p = 0 at the stiffness scale of the component
-        q = K.shape[0]
+        mask = np.asarray(mask, bool)
+        keep = self.coordinates(mask)
+        q = keep.size
+        K, M, D = (A[np.ix_(keep, keep)] for A in (self.K, self.M, self.D))
+        where = np.full(self.K.shape[0], -1)
+        where[keep] = np.arange(q)  # position of a kept ROM coordinate in the reduced Structure
         contacts = []
         for gr in self.groups:
             g = gr.group
@@ -130,20 +136,16 @@ class PenaltyROM(ReducedModel):
             load = np.zeros((rows.size, q))
             comp = gr.first + rows
             on = act[sel].ravel()
-            load[np.flatnonzero(on), self.p_slots[comp[on]]] = 1.0
-            contacts.append(ContactGroup(g.pairs.subset(sel), sp.csr_matrix(gr.Gr[rows]), names=tuple(np.array(g.names)[sel])
-                                         if g.names else (), load=sp.csr_matrix(load)))
+            load[np.flatnonzero(on), where[self.p_slots[comp[on]]]] = 1.0
+            contacts.append(ContactGroup(g.pairs.subset(sel), sp.csr_matrix(gr.Gr[np.ix_(rows, keep)]),
+                                         names=tuple(np.array(g.names)[sel]) if g.names else (),
+                                         load=sp.csr_matrix(load)))
         fs = self.full
-        fc, fsin = self.T.T @ fs.fc, self.T.T @ fs.fs
-        f0 = None if fs.f0 is None else self.T.T @ fs.f0
-        fc[off] = 0.0  # a pinned row says p = 0, nothing else
-        fsin[off] = 0.0
-        if f0 is not None:
-            f0[off] = 0.0
-        s = Structure(K=sp.csr_matrix(K), M=sp.csr_matrix(M), D=sp.csr_matrix(D), fc=fc,
-                      fs=fsin, contacts=tuple(contacts), f0=f0,
-                      dof_names=tuple(f"penalty.{i}" for i in range(q)),
-                      outputs={nm: self.T[dof].copy() for nm, dof in fs.outputs.items()},
+        T = self.T[:, keep]
+        s = Structure(K=sp.csr_matrix(K), M=sp.csr_matrix(M), D=sp.csr_matrix(D), fc=T.T @ fs.fc,
+                      fs=T.T @ fs.fs, contacts=tuple(contacts), f0=None if fs.f0 is None else T.T @ fs.f0,
+                      dof_names=tuple(f"penalty.{i}" for i in keep),
+                      outputs={nm: T[dof].copy() for nm, dof in fs.outputs.items()},
                       info={"kind": "rom:penalty", "active": int(np.count_nonzero(mask))})
         self._cache[key] = s
         return s
@@ -183,6 +185,7 @@ class PenaltyProblem(Problem, Adaptive):
         self.history: list[np.ndarray] = []  # per accepted point: components that slipped/separated/p != 0
         self.friction_tol = friction_tol
         self._hbm: dict[bytes, HBMResidual] = {}
+        self._unknowns: dict[bytes, np.ndarray] = {}
         self._num_dynamic: dict[bytes, int] = {}
         self.pairs = []
         for gi, gr in enumerate(rom.groups):
@@ -207,15 +210,22 @@ class PenaltyProblem(Problem, Adaptive):
             self._hbm[key] = HBMResidual(self.structure, self.harmonics)
         return self._hbm[key]
 
-    @property
-    def num_unknowns(self) -> int:
-        return self.q * self.harmonics.num_hc
+    def unknowns(self) -> np.ndarray:
+        """The coefficients solved: every harmonic of the modes, the TVDs and the active
+        components' internal variables ((size) x (2H + 1) of them)."""
+        key = self.mask.tobytes()
+        if key not in self._unknowns:
+            keep = self.rom.coordinates(self.mask)
+            self._unknowns[key] = (np.arange(self.harmonics.num_hc)[:, None] * self.q + keep[None, :]).ravel()
+        return self._unknowns[key]
 
     def evaluate(self, U, omega, *, jacobian=True) -> Evaluation:
-        return self.hbm().evaluate(U, omega, jacobian=jacobian)
+        return self.hbm().evaluate(U[self.unknowns()], omega, jacobian=jacobian)
 
     def initial_guess(self, omega):
-        return self.hbm().linear_solution(omega)
+        U = np.zeros(self.num_coefficients)
+        U[self.unknowns()] = self.hbm().linear_solution(omega)
+        return U
 
     def record(self, U, omega, evaluation) -> PointRecord:
         return PointRecord(self.states(U, omega, evaluation.contact), self.size,
@@ -237,6 +247,10 @@ class PenaltyProblem(Problem, Adaptive):
     def restore(self, state) -> None:
         """Adaptive hook: the active set recorded at a point (its PointRecord.active)."""
         self.mask = np.asarray(state, bool).copy()
+
+    def state_of(self, U) -> np.ndarray:
+        """Adaptive hook: the components whose internal variable is not zero in U (active)."""
+        return np.any(U.reshape(self.harmonics.num_hc, self.q)[:, self.rom.p_slots] != 0.0, axis=0)
 
     def _gap_time(self, U):
         """Gap samples of every group from the ROM coordinates: list of (N, P, m)."""
@@ -316,24 +330,25 @@ class PenaltyProblem(Problem, Adaptive):
         self.history.append(self._busy(U, omega, breaks))
         return False
 
-    def before_step(self, U, omega):
-        """Continuation hook: the active set for the next step.  Returns U with released p zeroed, or None."""
+    def before_step(self, U, omega) -> bool:
+        """Continuation hook: the active set for the next step.  True if it changed: a released
+        component's internal variable leaves the unknowns (it is zero from now on)."""
         if not self.history:
-            return None
+            return False
         recent = np.logical_or.reduce(self.history[-self.rom.options.release_after:])
         new = self.mask & recent | self.history[-1]
         if np.array_equal(new, self.mask):
-            return None
+            return False
         released = self.mask & ~new
         self.events["released"] += int(released.sum())
         self.mask = new
-        U = U.reshape(self.harmonics.num_hc, self.q).copy()
-        U[:, self.rom.p_slots[released]] = 0.0
-        return U.ravel()
+        return True
 
     def scales(self, omega_start, omega_end) -> Scales:
-        """x scale per ROM coordinate (hbm.forced.compute_rom_scales on the stuck ROM); the
+        """x scale per ROM coordinate, active or not (hbm.forced.compute_rom_scales on the stuck
+        ROM, the internal variables being displacements): the same for a coordinate whatever the
+        active set, so that the arclength metric does not change when the unknowns do; the
         residual's, the largest force on the stuck ROM's coordinates."""
         stuck = self.rom.structure_for(np.zeros(self.rom.num_comp, bool))
-        per = compute_rom_scales(stuck, self.rom.T, omega_start, omega_end, displacements=self.rom.p_slots)
+        per = compute_rom_scales(stuck, self.rom.T, omega_start, omega_end, displacements=self.rom.num_comp)
         return Scales.from_coordinates(per, self.harmonics, force_scale(stuck))
