@@ -282,8 +282,8 @@ def load_resume(folder: Path, scene: Scene, method: str, rom_options: RomOptions
     theirs = {"scene": problem_of(summary.get("scene_data")), "method": summary.get("method"),
               "harmonics": summary.get("harmonics"), "samples": summary.get("samples")}
     if method != "full":
-        mine.update(modes=rom_options.modes, tvd=rom_options.tvd)
-        theirs.update(modes=rom.get("modes"), tvd=rom.get("tvd"))
+        mine.update(modes=rom_options.modes, tvd=rom_options.tvd, tvd_kind=rom_options.tvd_kind)
+        theirs.update(modes=rom.get("modes"), tvd=rom.get("tvd"), tvd_kind=rom.get("tvd_kind", "eigen"))
     differ = [k for k in mine if mine[k] != theirs[k]]
     if differ:
         raise OutputError(f"--resume {folder}: it was solved with another {', '.join(differ)} "
@@ -506,6 +506,7 @@ def write_frf(solution: SceneSolution, scene: Scene, out: Path, *, method: str, 
                 "full_size": structure.num_dofs, "reduction_ratio_max": float(sizes.max() / structure.num_dofs)}
     if rom is not None:
         rom_info.update({"offline_s": rom.offline_s, "modes": rom_options.modes, "tvd": rom_options.tvd,
+                         "tvd_kind": rom_options.tvd_kind,
                          **{k: v for k, v in rom.info.items()}, **frf.info.get("active_set_events", {})})
     t_end = time.perf_counter()
     summary = {

@@ -23,7 +23,14 @@ from .scene import SceneError, load_scene
 def _rom_options(args) -> RomOptions:
     if args.modes < 0 or args.tvd < 0:
         raise RomError(f"--modes = {args.modes} and --tvd = {args.tvd} must be >= 0")
-    return RomOptions(modes=args.modes, tvd=args.tvd)
+    return RomOptions(modes=args.modes, tvd=args.tvd, tvd_kind=args.tvd_kind)
+
+
+def _tvd_kind_arg(parser) -> None:
+    from .rom.cms import TVD_KINDS
+    parser.add_argument("--tvd-kind", choices=TVD_KINDS, default="eigen",
+                        help="eigen (default): exact eigenvector derivatives with respect to each contact stiffness; "
+                             "eq12: the paper's static modal derivatives (tvd method; docs/theory.md)")
 
 
 def cmd_frf(args) -> int:
@@ -184,6 +191,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help=f"vibration modes of the ROM (default {defaults.ROM_MODES})")
     f.add_argument("--tvd", type=int, default=defaults.ROM_TVD,
                    help=f"trial-vector derivatives (penalty, tvd; default {defaults.ROM_TVD})")
+    _tvd_kind_arg(f)
     f.add_argument("--quiet", action="store_true", help="no progress bar or summary")
     f.add_argument("--plots", action="store_true", help="also the contact-state pictures (as `jointfem plot`)")
     f.add_argument("--resume", metavar="DIR", help="go on with the incomplete sweep in DIR (same scene, method, H, N), "
@@ -210,6 +218,7 @@ def build_parser() -> argparse.ArgumentParser:
     fo.add_argument("--method", choices=METHODS, default="full", help="model reduction (default: full order)")
     fo.add_argument("--modes", type=int, default=defaults.ROM_MODES)
     fo.add_argument("--tvd", type=int, default=defaults.ROM_TVD)
+    _tvd_kind_arg(fo)
     fo.add_argument("--quiet", action="store_true")
     _set_arg(fo)
     fo.set_defaults(func=cmd_force)
@@ -231,11 +240,12 @@ def build_parser() -> argparse.ArgumentParser:
     c = sub.add_parser("compare", help="every ROM against full order: sizes, times, errors (CSV, Markdown, PNG)")
     c.add_argument("scene", help="scene file (TOML)")
     c.add_argument("--methods", default=defaults.COMPARE_METHODS,
-                   help=f"comma-separated name[:modes[:tvd]] (default {defaults.COMPARE_METHODS})")
+                   help=f"comma-separated name[:modes[:tvd[:kind]]] (default {defaults.COMPARE_METHODS})")
     c.add_argument("--modes", type=int, default=defaults.ROM_MODES,
                    help=f"default modes for methods given without ({defaults.ROM_MODES})")
     c.add_argument("--tvd", type=int, default=defaults.ROM_TVD,
                    help=f"default TVDs for methods given without ({defaults.ROM_TVD})")
+    _tvd_kind_arg(c)
     c.add_argument("--output", help="output DOF the errors are measured on (default: the scene's first)")
     c.add_argument("--reference", choices=("full", "exact"), default="full",
                    help="reference solution: full order (default) or the exact condensation (same solution, "

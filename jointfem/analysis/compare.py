@@ -1,6 +1,7 @@
 """Speed against accuracy: every method's size, times and errors against full order.
 
-A method is given as ``name[:modes[:tvd]]`` (e.g. ``cb:10``, ``penalty:10:3``); missing
+A method is given as ``name[:modes[:tvd[:kind]]]`` (e.g. ``cb:10``, ``penalty:10:3``,
+``tvd:10:3:eq12`` for the paper's TVDs, rom.cms.TVD_KINDS); missing
 numbers take the defaults.  Errors are against the full model of the same scene, solved in
 the same run with the same harmonics, samples and tolerances.
 """
@@ -17,6 +18,7 @@ from ..linalg import eigen
 from ..models.structure import Structure
 from ..results import FrequencyResponse
 from ..rom import METHODS, RomError, RomOptions, build_rom
+from ..rom.cms import TVD_KINDS
 from .frf import compute_frf
 
 
@@ -31,25 +33,29 @@ class MethodSpec:
             return self.method
         o = self.options
         s = f"{self.method}:{o.modes}"
-        return s + (f"+{o.tvd}tvd" if o.tvd else "")
+        return s + (f"+{o.tvd}tvd" + ("(eq12)" if o.tvd_kind == "eq12" else "") if o.tvd else "")
 
 
 def parse_method(text: str, defaults: RomOptions) -> MethodSpec:
-    """'penalty:10:3' -> MethodSpec; raises RomError naming the bad part."""
+    """'penalty:10:3' or 'tvd:10:3:eq12' -> MethodSpec; raises RomError naming the bad part."""
     parts = text.strip().split(":")
     name = parts[0].lower()
     if name not in METHODS:
         raise RomError(f"--methods: {text!r}: unknown method {name!r}; choose from {', '.join(METHODS)}")
+    kind = defaults.tvd_kind
+    if len(parts) == 4:
+        kind = parts.pop().lower()
+        if kind not in TVD_KINDS:
+            raise RomError(f"--methods: {text!r}: unknown TVD kind {kind!r}; choose from {', '.join(TVD_KINDS)}")
     try:
         nums = [int(p) for p in parts[1:]]
     except ValueError:
-        raise RomError(f"--methods: {text!r}: modes and tvd must be integers (name[:modes[:tvd]])") from None
+        raise RomError(f"--methods: {text!r}: modes and tvd must be integers (name[:modes[:tvd[:kind]]])") from None
     if len(nums) > 2 or any(v < 0 for v in nums):
-        raise RomError(f"--methods: {text!r}: expected name[:modes[:tvd]] with non-negative integers")
+        raise RomError(f"--methods: {text!r}: expected name[:modes[:tvd[:kind]]] with non-negative integers")
     modes = nums[0] if nums else defaults.modes
     tvd = nums[1] if len(nums) > 1 else defaults.tvd
-    return MethodSpec(name, RomOptions(modes=modes, tvd=tvd, interface_modes=defaults.interface_modes,
-                                       release_after=defaults.release_after))
+    return MethodSpec(name, replace(defaults, modes=modes, tvd=tvd, tvd_kind=kind))
 
 
 def curve_error(frf: FrequencyResponse, ref: FrequencyResponse, output: str, *, stable_only: bool = False) -> float:

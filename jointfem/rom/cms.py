@@ -227,14 +227,73 @@ def mode_derivatives(structure: Structure, Phi: np.ndarray, w2: np.ndarray) -> n
     return out
 
 
+def static_modal_derivatives(structure: Structure, Phi: np.ndarray, num: int) -> tuple[np.ndarray, np.ndarray]:
+    """The paper's TVDs (Eq. 12), POD-compressed: K_lin^-1 (dK_lin/dq_j) b_i for every pair of
+    vectors b_i, b_j of the linear basis (the stuck modes Phi and the static modes Psi of every
+    contact component), minus their M-projection on Phi, in the M inner product.
+
+    dK_lin/dq_j for contact springs: the stiffness k_c of component c is taken to change in
+    proportion to its own gap, dk_c/dg_c = k_c / l (one length l for every component, which the
+    POD's normalisation removes: the same relative softening as any spring nears slip or lift-off),
+    so dK_lin/dq_j = sum_c (k_c / l) (g_c b_j) g_c^T g_c and
+
+        K_lin^-1 (dK_lin/dq_j) b_i = (1 / l) sum_c (g_c b_i)(g_c b_j) psi_c,   psi_c = K_lin^-1 g_c^T k_c:
+
+    every derivative is a combination of the static modes (dK_lin has rank one per component).
+    Weighting: each b is scaled to a largest gap of 1 before its products are formed, so that a
+    mode's mass normalisation and a static mode's unit p weigh alike; the POD then keeps what the
+    pairs' gaps excite most.  The snapshots (s of them, s = q(q+1)/2 for q basis vectors) are
+    never formed: with A = G [Phi, Psi] (J, q) and W the (J, s) weights, W W^T = (P o P + (A o A)
+    (A o A)^T) / 2 with P = A A^T (o: elementwise), a J x J matrix.
+    Returns (num vectors, M-orthonormal and M-orthogonal to Phi; the singular values)."""
+    n = structure.num_dofs
+    if num == 0:
+        return np.zeros((n, 0)), np.zeros(0)
+    G = sp.vstack([g.gap for g in structure.contacts]).tocsr()
+    k = np.concatenate([g.pairs.stiffness.ravel() for g in structure.contacts])
+    Kl, M = structure.K_lin, structure.M
+    try:
+        Psi = Factorized(Kl, what="tvd (eq12): K_lin").solve(G.T.toarray() * k)  # (n, J)
+    except LinAlgError as exc:
+        raise RomError(str(exc)) from exc
+    A = G @ np.hstack([Phi, Psi])  # (J, q): the gaps of every basis vector
+    top = np.abs(A).max(axis=0)
+    A = A / np.where(top > 0, top, 1.0)
+    P = A @ A.T
+    A2 = A * A
+    WW = 0.5 * (P * P + A2 @ A2.T)  # (J, J)
+    Z = Psi - Phi @ (Phi.T @ (M @ Psi))  # the static modes, less their M-projection on Phi
+    lam, Q = np.linalg.eigh(0.5 * (Z.T @ (M @ Z) + (Z.T @ (M @ Z)).T))
+    keep = lam > 1e-12 * max(lam.max(), 1e-300)
+    Y = Z @ (Q[:, keep] / np.sqrt(lam[keep]))  # M-orthonormal basis of their span
+    R = np.sqrt(lam[keep])[:, None] * Q[:, keep].T  # Z = Y R
+    C = R @ WW @ R.T
+    s2, U = np.linalg.eigh(0.5 * (C + C.T))
+    order = np.argsort(s2)[::-1]
+    s2, U = np.clip(s2[order], 0.0, None), U[:, order]
+    sv = np.sqrt(s2)
+    avail = int(np.sum(s2 > 1e-12 * s2[0])) if s2.size and s2[0] > 0 else 0
+    if avail < num:
+        raise RomError(f"tvd (eq12): only {avail} independent trial-vector derivatives exist, {num} asked")
+    return Y @ U[:, :num], sv
+
+
+TVD_KINDS = ("eigen", "eq12")
+
+
 def trial_vector_derivatives(structure: Structure, Phi: np.ndarray, w2: np.ndarray, num: int,
-                             against: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """POD of the mode derivatives with respect to the stiffness of each contact component
+                             against: np.ndarray | None = None, kind: str = "eigen") -> tuple[np.ndarray, np.ndarray]:
+    """``num`` POD-compressed trial-vector derivatives of the stuck modes Phi: ``kind`` "eigen",
+    the exact eigenvector derivatives with respect to the stiffness of each contact component
     (mode_derivatives: one per mode and component before POD), in the M inner product, after
-    removing their M-projection on ``against`` (default Phi).  Returns (num vectors, all
-    singular values)."""
+    removing their M-projection on ``against`` (default Phi); "eq12", the paper's static modal
+    derivatives (static_modal_derivatives).  Returns (num vectors, all singular values)."""
+    if kind not in TVD_KINDS:
+        raise RomError(f"tvd_kind = {kind!r}: choose from {', '.join(TVD_KINDS)}")
     if num == 0:
         return np.zeros((structure.num_dofs, 0)), np.zeros(0)
+    if kind == "eq12":
+        return static_modal_derivatives(structure, Phi, num)
     D = mode_derivatives(structure, Phi, w2)
     V = D.reshape(D.shape[0], -1)
     vecs, sv = pod(V, structure.M, num, against=Phi if against is None else against)
@@ -245,6 +304,7 @@ def trial_vector_derivatives(structure: Structure, Phi: np.ndarray, w2: np.ndarr
 
 def tvd_method(structure: Structure, options: RomOptions) -> ReducedModel:
     w2, Phi = eigen(structure.K_lin, structure.M, options.modes, what="tvd: stuck structure")
-    V, sv = trial_vector_derivatives(structure, Phi, w2, options.tvd)
+    V, sv = trial_vector_derivatives(structure, Phi, w2, options.tvd, kind=options.tvd_kind)
     return project(structure, np.hstack([Phi, V]), "tvd",
-                   info={"modes": Phi.shape[1], "tvd": V.shape[1], "tvd_singular_values": sv[:10].tolist()})
+                   info={"modes": Phi.shape[1], "tvd": V.shape[1], "tvd_kind": options.tvd_kind,
+                         "tvd_singular_values": sv[:10].tolist()})

@@ -34,6 +34,9 @@ class BasisError(RomError):
 class RomOptions:
     modes: int = defaults.ROM_MODES  # vibration modes: global (penalty, tvd) or in total over the substructures (CMS)
     tvd: int = defaults.ROM_TVD  # POD-compressed trial-vector derivatives (penalty, tvd)
+    # which TVDs: "eigen", exact eigenvector derivatives with respect to each contact stiffness;
+    # "eq12", the paper's static modal derivatives (Eq. 12; tvd method only: docs/theory.md)
+    tvd_kind: str = "eigen"
     interface_modes: int | None = None  # JIM: characteristic interface modes (default: half the boundary DOFs)
     release_after: int = 2  # penalty: converged points a pair must stay stuck before it leaves the active set
 

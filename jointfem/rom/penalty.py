@@ -64,7 +64,13 @@ class PenaltyROM(ReducedModel):
         Kl = structure.K_lin
         w2, Phi = eigen(Kl, structure.M, options.modes, what="penalty: stuck structure")
         check_modes(Phi, structure.M, "penalty: the stuck vibration modes")
-        V, sv = trial_vector_derivatives(structure, Phi, w2, options.tvd)
+        if options.tvd and options.tvd_kind == "eq12":
+            raise RomError("penalty: the paper's TVDs (tvd_kind = 'eq12', Eq. 12) are combinations of the static "
+                           "modes, K_lin^-1 dK_lin/dq_j b_i = sum_c (g_c b_i)(g_c b_j) psi_c / l, because each contact "
+                           "spring's stiffness change has rank one; this ROM already holds the static mode of every "
+                           "active component, so they add nothing, and make it singular once every component is "
+                           "active (docs/theory.md, TVDs); use tvd_kind = 'eigen' here, or the tvd method")
+        V, sv = trial_vector_derivatives(structure, Phi, w2, options.tvd, kind=options.tvd_kind)
         G = sp.vstack([g.gap for g in structure.contacts]).tocsr()
         kc = np.concatenate([g.pairs.stiffness.ravel() for g in structure.contacts])
         try:
