@@ -60,6 +60,10 @@ def cmd_frf(args) -> int:
         return 130 if stop.interrupted else 3
     if not args.quiet:
         for name, pk in summary["peaks"].items():
+            if pk.get("edge"):  # the largest amplitude at an end of the range: no resonance inside it
+                print(f"{name}: no peak inside the range: largest {pk['amp1_m']:.6e} m at its end, "
+                      f"{pk['omega_rad_s']:.6f} rad/s ({pk['freq_Hz']:.4f} Hz)")
+                continue
             print(f"{name}: peak {pk['amp1_m']:.6e} m at {pk['omega_rad_s']:.6f} rad/s ({pk['freq_Hz']:.4f} Hz)")
         print(f"{summary['num_points']} points, {summary['newton_iterations_total']} Newton iterations, "
               f"{summary['wall_s']['total']:.2f} s -> {out}/")

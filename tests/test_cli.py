@@ -166,6 +166,19 @@ def test_a_complete_sweep_says_so(tmp_path):
     assert set(s["continuation"]) == {"refused_steps", "corners_passed", "redone_steps"}
 
 
+def test_a_range_without_its_resonance_says_no_peak(tmp_path):
+    """0.5 to 0.9 rad/s on the SDOF oscillator (resonance near 1.4 rad/s): the largest amplitude is
+    the range's end, and the terminal says there is no peak inside, as summary.json does."""
+    out = tmp_path / "out"
+    r = subprocess.run([sys.executable, "-m", "jointfem", "frf", str(ROOT / "demos" / "sdof_jenkins.toml"),
+                        "--out", str(out), "--harmonics", "3", "--samples", "64",
+                        "--set", "solver.omega_range=[0.5, 0.9]"], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    s = json.loads((out / "summary.json").read_text())
+    assert s["peaks"]["m.x"]["edge"] is True
+    assert "m.x: no peak inside the range: largest" in r.stdout and "m.x: peak" not in r.stdout
+
+
 def test_ctrl_c_keeps_the_points_and_exits_130(tmp_path):
     """SIGINT during a long sweep (tiny steps): exit 130, one line, and the folder holds the points
     converged before it, marked incomplete."""
