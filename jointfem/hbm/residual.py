@@ -28,6 +28,15 @@ def contact_pattern(pairs, nh: int, stride: int, offset: int = 0) -> tuple[np.nd
     return h * stride + offset + p * m + a, h2 * stride + offset + p * m + b, f0
 
 
+def _selection(L: np.ndarray):
+    """(rows, columns) if the dense L (P*m, n) only selects: every nonzero entry 1, at most one per
+    row and per column; else None."""
+    r, c = np.nonzero(L)
+    if np.all(L[r, c] == 1.0) and np.unique(r).size == r.size and np.unique(c).size == c.size:
+        return r, c
+    return None
+
+
 class HBMResidual(KeepsLastEvaluation):
     """Precomputed harmonic operators for one Structure and one Harmonics."""
 
@@ -63,8 +72,11 @@ class HBMResidual(KeepsLastEvaluation):
                 # a dense model keeps G and L (P*m, n) themselves: the harmonic blocks are applied by
                 # reshaping (B = I (x) G), and the contact Jacobian L^T Jc G by contracting its
                 # per-pair blocks, instead of products with the Kronecker matrices (on the 3D lap
-                # joint's penalty ROM those took 17 ms of an 18 ms evaluation)
+                # joint's penalty ROM those took 17 ms of an 18 ms evaluation).  An L that only
+                # selects (the penalty ROM's: each component's force on its own internal variable)
+                # is kept as (rows, columns) and applied by indexing.
                 B, BT = g.gap.toarray(), g.load_operator.toarray()
+                BT = _selection(BT) or BT
             else:
                 B = sp.kron(eye, g.gap, format="csr")
                 BT = sp.kron(eye, g.load_operator, format="csr").T.tocsr()
@@ -94,14 +106,30 @@ class HBMResidual(KeepsLastEvaluation):
             return [(Z @ B.T).reshape(nh, g.pairs.num_pairs, g.pairs.num_comp) for g, B, *_ in self._groups]
         return [(B @ U).reshape(nh, g.pairs.num_pairs, g.pairs.num_comp) for g, B, *_ in self._groups]
 
-    def _contact_jacobian_dense(self, Jp: np.ndarray, G: np.ndarray, L: np.ndarray) -> np.ndarray:
+    def _contact_jacobian_dense(self, Jp: np.ndarray, G: np.ndarray, L) -> np.ndarray:
         """L^T Jc G in the harmonic-major layout, from the per-pair blocks Jp (P, nh, m, nh, m) of
-        dF/dg and the group's G, L (P*m, n): sum over p, a, b of L[pa, i] Jp[p, h, a, k, b] G[pb, j]."""
+        dF/dg and the group's G, L (P*m, n): sum over p, a, b of L[pa, i] Jp[p, h, a, k, b] G[pb, j].
+        L may be a selection (rows, columns) (_selection)."""
         P, nh, m = Jp.shape[0], Jp.shape[1], Jp.shape[2]
         n = G.shape[1]
         X = np.einsum("phakb,pbj->pahkj", Jp, G.reshape(P, m, n), optimize=True)  # (P, m, nh, nh, n)
+        X = X.reshape(P * m, nh, nh, n)
+        if isinstance(L, tuple):
+            rows, cols = L
+            out = np.zeros((nh, n, nh, n))
+            out[:, cols] = X[rows].transpose(1, 0, 2, 3)
+            return out.reshape(nh * n, nh * n)
         J4 = L.T @ X.reshape(P * m, nh * nh * n)  # (n, nh * nh * n): [i, h, k, j]
         return J4.reshape(n, nh, nh, n).transpose(1, 0, 2, 3).reshape(nh * n, nh * n)
+
+    def _load(self, BT, F: np.ndarray) -> np.ndarray:
+        """L^T applied to force coefficients F (nh, P*m) of one group, as the residual's (nh * n,)."""
+        if isinstance(BT, tuple):
+            rows, cols = BT
+            out = np.zeros((F.shape[0], self.structure.num_dofs))
+            out[:, cols] = F[:, rows]
+            return out.ravel()
+        return (F @ BT).ravel()
 
     def _evaluate(self, U: np.ndarray, omega: float, jacobian: bool) -> Evaluation:
         A = self.linear_operator(omega)
@@ -113,7 +141,7 @@ class HBMResidual(KeepsLastEvaluation):
             res = g.pairs.aft(G, self.harmonics, jacobian=jacobian)
             contact.append(res)
             if self.dense:
-                R = R + ((res.F - f0).reshape(nh, -1) @ BT).ravel()
+                R = R + self._load(BT, (res.F - f0).reshape(nh, -1))
             else:
                 R = R + BT @ (res.F - f0).ravel()
             if jacobian:
