@@ -2,7 +2,7 @@
 PY := .venv/bin/python
 MPIRUN := mpirun $(if $(filter 0,$(shell id -u)),--allow-run-as-root) --oversubscribe
 
-.PHONY: setup demo test test-fast bench bench-corners paper validate clean
+.PHONY: setup demo test test-fast bench bench-corners bench-friction paper validate clean
 
 setup:
 	@bash tools/setup.sh
@@ -20,6 +20,11 @@ bench: setup
 # issue 14's sweeps at strong separation, each under a time budget (about 30 min on 2 cores)
 bench-corners: setup
 	$(PY) benchmarks/corners.py --out docs/benchmarks_corners.md --jobs 2 --skip-before
+
+# issue 13's trade where friction dominates: the 3D lap joint at 1 MPa, ROMs against the exact
+# condensation, and the energy per cycle against the force (about 15 min on 2 cores)
+bench-friction: setup
+	$(PY) benchmarks/friction.py --out docs/benchmarks_friction.md
 
 paper: setup
 	$(PY) demos/paper_figures.py --out docs

@@ -235,7 +235,7 @@ def bench_lap3d(repeats: int, img: Path) -> dict:
 
 def bench_convergence() -> dict:
     """The SDOF Jenkins oscillator (F = 0.5, stick-slip at the peak): the peak of the first
-    harmonic (parabola through the three highest points of a sweep with ds_max = 0.005), and the
+    harmonic (located to the Newton tolerance on a sweep with ds_max = 0.005: analysis.peaks), and the
     first harmonic at omega = 1.29, for H = 1..25 at N = 4096 and for N = 2H+1..4096 at H = 7,
     against H = 25, N = 16384."""
     from jointfem.continuation.arclength import ContinuationOptions
@@ -319,8 +319,8 @@ def write_markdown(path: Path, m: dict, aft: dict, sdof: dict, beam: dict, comma
               "size (a range when the penalty ROM's active set changes along the branch), RR = largest size / full "
               f"size, offline and online seconds (online: the whole continuation, median of {roms['repeats']} "
               "sweeps; the reference is swept once), Newton iterations per point, and errors of the output's first "
-              "harmonic against the reference of the same run: peak amplitude and frequency (parabola through the "
-              "three highest points) and the largest distance of the ROM's points from the reference curve, in % of "
+              "harmonic against the reference of the same run: peak amplitude and frequency (located to the Newton "
+              "tolerance between the branch points: analysis.peaks) and the largest distance of the ROM's points from the reference curve, in % of "
               "the reference peak.  `cb:10` = Craig-Bampton with 10 fixed-interface modes, `penalty:10+3tvd` = the "
               "penalty ROM with 10 modes and 3 trial-vector derivatives.", "",
               f"### Jointed beam at separation (demos/beam2d.toml, 3.0 N, H = {roms['H']}, N = {roms['N']}, "
@@ -354,9 +354,8 @@ def write_markdown(path: Path, m: dict, aft: dict, sdof: dict, beam: dict, comma
     ref = conv["ref"]
     lines += ["## Convergence in H and N: SDOF Jenkins oscillator, F = 0.5 (stick-slip at the peak)", "",
               f"Reference: H = 25, N = 16384: peak {ref[1]:.8f} m at {ref[0]:.6f} rad/s; first harmonic at 1.29 rad/s "
-              f"{ref[2]:.8f} m.  Peaks from sweeps with ds_max = 0.005 (the parabola through the three highest points "
-              "adds its own error of about 1e-5); the value at 1.29 rad/s is a Newton solution at that omega, free "
-              "of it.  Only odd harmonics are excited (the even ones vanish by symmetry), so an even H repeats the "
+              f"{ref[2]:.8f} m.  Peaks from sweeps with ds_max = 0.005, located to the Newton tolerance between "
+              "the branch points (analysis.peaks); the value at 1.29 rad/s is a Newton solution at that omega.  Only odd harmonics are excited (the even ones vanish by symmetry), so an even H repeats the "
               "H - 1 row.  tests/test_extremes_systems.py asserts this convergence.", "",
               "| H | N | peak amp rel. err | peak freq rel. err | amp at 1.29 rad/s rel. err | points | sweep [s] |",
               "|---|---|---|---|---|---|---|"]
