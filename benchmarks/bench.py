@@ -183,7 +183,7 @@ def bench_roms(repeats: int, img: Path) -> dict:
         frf = compute_frf(model, sweep_options(scene))
         prof.disable()
         st = pstats.Stats(prof).stats
-        ev = [v for (f, _, n), v in st.items() if n == "evaluate" and f.endswith("residual.py")][0]
+        ev = [v for (f, _, n), v in st.items() if n == "_evaluate" and f.endswith("residual.py")][0]
         aft = [v for (f, _, n), v in st.items() if n == "compute_aft"][0]
         lu = [v for (f, _, n), v in st.items() if n in ("_solve", "_solve_with_sign") and f.endswith("arclength.py")]
         calls, tt = sum(v[1] for v in lu), sum(v[3] for v in lu)
