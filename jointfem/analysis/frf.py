@@ -9,7 +9,7 @@ from typing import Callable
 import numpy as np
 
 from ..continuation.arclength import (ContinuationError, ContinuationOptions, ContinuationPoint, NewtonOptions,
-                                     continue_branch, solve_newton)
+                                     continue_branch, solve_adaptive)
 from ..harmonics import Harmonics
 from ..hbm.forced import ForcedProblem
 from ..hbm.problem import Problem, newton_system
@@ -255,14 +255,9 @@ def solve_at(model: Structure | Reduction, omega: float, harmonics: Harmonics, *
     adapt = problem.adaptation
     if adapt is not None and guess is not None:
         adapt.restore(adapt.state_of(U0))  # every coefficient of the guess that is not zero is solved
-    U, it = solve_newton(newton_system(problem), U0, omega, x_scale=scales.x, r_scale=scales.r, options=opts,
-                         select=problem.unknowns())
-    for _ in range(adapt.max_redo if adapt is not None else 0):
-        if not adapt.after_converge(U, omega):  # (the penalty ROM: an inactive pair broke its law)
-            break
-        U, more = solve_newton(newton_system(problem), U, omega, x_scale=scales.x, r_scale=scales.r, options=opts,
-                               select=problem.unknowns())
-        it += more
+    # (the penalty ROM: solved again while an inactive pair breaks its law)
+    U, it = solve_adaptive(newton_system(problem), U0, omega, adapt=adapt, x_scale=scales.x, r_scale=scales.r,
+                           options=opts)
     ev = problem.evaluate(U, omega, jacobian=False)
     nh = harmonics.num_hc
     q = problem.num_coefficients // nh

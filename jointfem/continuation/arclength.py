@@ -148,21 +148,18 @@ def _bordered(J, c, t):
     return A
 
 
-def _scaled(fun, x_scale, lam_scale, r_scale, space=None):
-    """Wrap fun(x, lam) -> (R, J, dR/dlam) into scaled variables; with a :class:`_Space`, into the
-    scaled unknowns of the space (fun still takes every coefficient)."""
-    if space is not None:
-        x_scale = space.scale
-
-    Sx = sp.diags(x_scale) if np.ndim(x_scale) else None
+def _scaled(fun, space: "_Space", lam_scale, r_scale):
+    """Wrap fun(x, lam) -> (R, J, dR/dlam), which takes every coefficient, into the scaled unknowns
+    of ``space``."""
+    Sx = sp.diags(space.scale)
 
     def g(y, mu):
-        R, J, dl = fun(y * x_scale if space is None else space.full(y), mu * lam_scale)
+        R, J, dl = fun(space.full(y), mu * lam_scale)
         if R.shape[0] != np.size(y):
             raise ValueError(f"the problem returned {R.shape[0]} residuals for {np.size(y)} unknowns: "
                              "an adaptive problem's unknowns (Adaptive.unknowns) were not passed")
         if J is not None:
-            J = (J @ Sx) / r_scale if sp.issparse(J) and Sx is not None else J * x_scale / r_scale
+            J = (J @ Sx) / r_scale if sp.issparse(J) else J * space.scale / r_scale
             dl = dl * lam_scale / r_scale
         return R / r_scale, J, dl
 
@@ -258,7 +255,7 @@ def solve_newton(fun: Callable, x0: np.ndarray, lam: float, *, x_scale, r_scale:
     """Solve R(x, lam) = 0 at fixed lam.  Returns (x, iterations); raises ConvergenceError.
     ``select``: the coefficients of x solved (Adaptive.unknowns; None: all), the others zero."""
     space = _Space(np.broadcast_to(np.asarray(x_scale, float), np.shape(x0)).copy(), select)
-    g = _scaled(fun, None, 1.0, r_scale, space)
+    g = _scaled(fun, space, 1.0, r_scale)
 
     def F(y):
         R, J, _ = g(y, lam)
@@ -266,6 +263,22 @@ def solve_newton(fun: Callable, x0: np.ndarray, lam: float, *, x_scale, r_scale:
 
     y, it, _ = _damped_newton(F, space.sub(x0), options, "Newton", lambda z: lam)
     return space.full(y), it
+
+
+def solve_adaptive(fun: Callable, x0: np.ndarray, lam: float, *, adapt: "Adaptive | None", x_scale, r_scale: float,
+                   options: NewtonOptions = NewtonOptions()) -> tuple[np.ndarray, int]:
+    """solve_newton in the unknowns of an adaptive problem, solved again each time its
+    ``after_converge`` changes it (the penalty ROM's active set grows), as the continuation's start
+    point is.  Returns (x, iterations); raises ContinuationError if it keeps changing."""
+    select = None if adapt is None else adapt.unknowns()
+    x, it = solve_newton(fun, x0, lam, x_scale=x_scale, r_scale=r_scale, options=options, select=select)
+    for _ in range(adapt.max_redo if adapt is not None else 1):
+        if adapt is None or not adapt.after_converge(x, lam):
+            return x, it
+        x, more = solve_newton(fun, x, lam, x_scale=x_scale, r_scale=r_scale, options=options,
+                               select=adapt.unknowns())
+        it += more
+    raise ContinuationError(f"the problem kept changing at lam = {lam:.9g} ({adapt.max_redo} solves)")
 
 
 def correct(fun: Callable, x_p: np.ndarray, lam_p: float, direction: tuple[np.ndarray, float], *, x_scale,
@@ -279,7 +292,7 @@ def correct(fun: Callable, x_p: np.ndarray, lam_p: float, direction: tuple[np.nd
     the branch where it crosses the hyperplane, whether it is a graph over lam there or folds.
     """
     space = _Space(np.broadcast_to(np.asarray(x_scale, float), np.shape(x_p)).copy(), select)
-    g = _scaled(fun, None, lam_scale, r_scale, space)
+    g = _scaled(fun, space, lam_scale, r_scale)
     t = np.append(space.sub(np.asarray(direction[0], float)), direction[1] / lam_scale)
     t = t / np.linalg.norm(t)
     y, mu, it, res = _corrector(g, space.sub(x_p), lam_p / lam_scale, t, options, lam_scale)
@@ -368,18 +381,10 @@ def continue_branch(fun: Callable, x0: np.ndarray, lam0: float, lam_end: float, 
     def unknowns():
         return None if adapt is None else adapt.unknowns()
 
-    x, it0 = solve_newton(fun, x0, lam0, x_scale=x_scale, r_scale=r_scale, options=opts.newton, select=unknowns())
-    for _ in range(Adaptive.max_redo):
-        if adapt is None or not adapt.after_converge(x, lam0):
-            break
-        x, it = solve_newton(fun, x, lam0, x_scale=x_scale, r_scale=r_scale, options=opts.newton,
-                             select=unknowns())
-        it0 += it
-    else:
-        raise ContinuationError(f"the problem kept changing at the start point lam = {lam0:.9g}")
+    x, it0 = solve_adaptive(fun, x0, lam0, adapt=adapt, x_scale=x_scale, r_scale=r_scale, options=opts.newton)
     # the unknowns solved now; every step works in them (scaled), every point is kept in x
     space = _Space(x_scale, unknowns())
-    g_space = _scaled(fun, None, lam_scale, r_scale, space)
+    g_space = _scaled(fun, space, lam_scale, r_scale)
 
     def g_plain(y_, mu_):
         return g_space(y_, mu_)
@@ -390,7 +395,7 @@ def continue_branch(fun: Callable, x0: np.ndarray, lam0: float, lam_end: float, 
         point is still a solution; one that leaves was zeroed by the problem)."""
         nonlocal space, g_space
         old, space = space, _Space(x_scale, unknowns())
-        g_space = _scaled(fun, None, lam_scale, r_scale, space)
+        g_space = _scaled(fun, space, lam_scale, r_scale)
         if space.select.size == old.select.size and np.array_equal(space.select, old.select):
             return y_old, t_old
         t_new = np.append(space.carry(t_old[:-1], old), t_old[-1])
