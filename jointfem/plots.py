@@ -91,12 +91,27 @@ def plot_frf(frf: FrequencyResponse, path: Path, *, title: str = "") -> Path:
     return path
 
 
-def plot_levels(curves: list[tuple[str, FrequencyResponse]], output: str, path: Path, *, title: str = "") -> Path:
-    """Several FRFs of one output (e.g. forcing levels), amplitude normalised by the force."""
+def plot_levels(curves: list[tuple[str, FrequencyResponse]], output: str, path: Path, *, title: str = "",
+                harmonic_tol: float = 0.05) -> Path:
+    """Several FRFs of one output (e.g. forcing levels), amplitude normalised by the force.
+
+    Each is drawn as ``plot_branch`` draws it (dashed where unstable; solid where its stability
+    was not computed, which the label then says), and dotted over the points whose harmonic
+    truncation estimate (branch.npz ``harmonic_error``) exceeds ``harmonic_tol``."""
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(7.5, 4.5))
     for label, frf in curves:
-        ax.plot(frf.omega / (2 * np.pi), frf.amplitude(frf.outputs[output]), label=label)
+        f, a = frf.omega / (2 * np.pi), frf.amplitude(frf.outputs[output])
+        if frf.stable is None:
+            label = f"{label} (stability not computed)"
+        line = plot_branch(ax, f, a, frf.stable, label=label)
+        he = frf.info.get("arrays", {}).get("harmonic_error")
+        if he is not None and np.max(he) > harmonic_tol:
+            bad = np.asarray(he) > harmonic_tol
+            on = bad | np.append(bad[1:], False) | np.append(False, bad[:-1])
+            ax.plot(f, np.where(on, a, np.nan), ls=":", lw=3, color=line.get_color(),
+                    label=f"{label.split(' (')[0]}: H = {frf.harmonics.H} not converged (truncation "
+                          f"estimate up to {np.max(he):.2f} > {harmonic_tol:g})")
     ax.set_xlabel("frequency [Hz]")
     ax.set_ylabel(f"{output} receptance [m/N]")
     ax.set_yscale("log")
