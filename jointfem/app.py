@@ -257,15 +257,19 @@ def solve_scene(scene: Scene, *, progress: bool = False, method: str = "full",
     return SceneSolution(structure, frf, t_build, rom, incomplete)
 
 
-def load_resume(folder: Path, scene: Scene, method: str, rom_options: RomOptions) -> Resume:
-    """The branch of an incomplete sweep in ``folder``, checked to be this scene's with this method
-    (and H, N, ROM options); OutputError with one line otherwise."""
+def _incomplete_run(folder: Path, scene: Scene, method: str, rom_options: RomOptions, analysis: str,
+                    **same) -> tuple[dict, dict]:
+    """(summary, branch arrays) of the incomplete run of ``analysis`` in ``folder``, checked to be
+    this scene's with this method (and H, N, ROM options, and the ``same`` summary values);
+    OutputError with one line otherwise."""
     folder = Path(folder)
     try:
         summary = json.loads((folder / "summary.json").read_text())
         b = load_branch(folder / "branch.npz")
     except (OSError, ValueError) as exc:
         raise OutputError(f"--resume {folder}: no result folder to resume ({exc})") from None
+    if (theirs_analysis := summary.get("analysis", "frf")) != analysis:
+        raise OutputError(f"--resume {folder}: it holds a {theirs_analysis} run, not a {analysis} run")
     if summary.get("status") != "incomplete":
         raise OutputError(f"--resume {folder}: its sweep is {summary.get('status', 'of an older jointfem')}, "
                           f"not incomplete: nothing to resume")
@@ -278,9 +282,10 @@ def load_resume(folder: Path, scene: Scene, method: str, rom_options: RomOptions
         return data
 
     mine = {"scene": problem_of(scene.data), "method": method, "harmonics": scene.solver.harmonics,
-            "samples": scene.solver.samples}
+            "samples": scene.solver.samples, **same}
     theirs = {"scene": problem_of(summary.get("scene_data")), "method": summary.get("method"),
-              "harmonics": summary.get("harmonics"), "samples": summary.get("samples")}
+              "harmonics": summary.get("harmonics"), "samples": summary.get("samples"),
+              **{k: summary.get(k) for k in same}}
     if method != "full":
         mine.update(modes=rom_options.modes, tvd=rom_options.tvd, tvd_kind=rom_options.tvd_kind)
         theirs.update(modes=rom.get("modes"), tvd=rom.get("tvd"), tvd_kind=rom.get("tvd_kind", "eigen"))
@@ -290,8 +295,22 @@ def load_resume(folder: Path, scene: Scene, method: str, rom_options: RomOptions
                           f"({', '.join(f'{k} = {theirs[k]!r}' for k in differ if k != 'scene') or 'scene data'})")
     if "ds_next" not in b:
         raise OutputError(f"--resume {folder}: written by an older jointfem (no ds_next in branch.npz)")
+    return summary, b
+
+
+def load_resume(folder: Path, scene: Scene, method: str, rom_options: RomOptions) -> Resume:
+    """The branch of an incomplete sweep in ``folder``, checked to be this scene's with this method
+    (and H, N, ROM options); OutputError with one line otherwise."""
+    _, b = _incomplete_run(folder, scene, method, rom_options, "frf")
     return Resume(omega=b["omega"], U=b["U"], iterations=b["iterations"], residual=b["residual"],
                   ds_next=float(b["ds_next"][-1]))
+
+
+def load_force_resume(folder: Path, scene: Scene, method: str, rom_options: RomOptions, omega: float) -> dict:
+    """The branch arrays of an incomplete `jointfem force` run in ``folder`` at this omega, checked
+    as load_resume checks a sweep's (compute_force_response's ``resume``)."""
+    _, b = _incomplete_run(folder, scene, method, rom_options, "force", omega_rad_s=omega)
+    return b
 
 
 # files a run of `jointfem frf` (and `jointfem plot`) writes into its folder
@@ -381,7 +400,7 @@ def write_modes(modes: dict, structure: Structure, out: Path) -> None:
     atomic_write(Path(out) / "modes.npz", npz)
 
 
-def write_force(response, scene: Scene, out: Path, *, method: str) -> dict:
+def write_force(response, scene: Scene, out: Path, *, method: str, rom_options: RomOptions | None = None) -> dict:
     """A force sweep's folder: force.csv (scale, the scene's first harmonic force times it, each
     output's first-harmonic amplitude), branch.npz, summary.json and force.png (log-log)."""
     from .plots import pyplot
@@ -411,7 +430,9 @@ def write_force(response, scene: Scene, out: Path, *, method: str) -> dict:
                "num_points": int(response.scale.size), "status": response.info.get("status", "complete"),
                **({"stop_reason": response.info["stop_reason"]} if "stop_reason" in response.info else {}),
                "continuation": response.info["continuation"], "num_unknowns": response.info["num_unknowns"],
-               "wall_s": response.info["time_s"], "software": software()}
+               "wall_s": response.info["time_s"], "software": software(),
+               **({"rom": {"modes": rom_options.modes, "tvd": rom_options.tvd, "tvd_kind": rom_options.tvd_kind}}
+                  if method != "full" and rom_options is not None else {})}
     atomic_write(out / "summary.json", lambda p: Path(p).write_text(json.dumps(summary, indent=2, default=float)))
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(6.4, 4.2))

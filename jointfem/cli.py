@@ -95,8 +95,7 @@ def cmd_modes(args) -> int:
 
 def cmd_force(args) -> int:
     from . import app, parallel
-    from .analysis.force import compute_force_response
-    from .analysis.frf import SweepIncomplete  # noqa: F401
+    from .analysis.force import ForceIncomplete, compute_force_response
     from .harmonics import Harmonics
     from .rom import build_rom
     from .scene import check_solvable, create_structure
@@ -108,24 +107,31 @@ def cmd_force(args) -> int:
     lo, hi = args.scale
     if not 0 < lo < hi:
         raise SceneError("--scale", "scale", [lo, hi], "must be 0 < start < end")
+    options = _rom_options(args)
+    resume = None
+    if args.resume:
+        out = Path(args.out) if args.out else Path(args.resume)
+        resume = app.load_force_resume(Path(args.resume), scene, args.method, options, args.omega)
     if parallel.is_root():
         app.check_output(out)
     check_solvable(scene)
     structure = create_structure(scene)
     app.check_resources(scene, structure)
-    model = structure if args.method == "full" else build_rom(structure, args.method, _rom_options(args))
+    model = structure if args.method == "full" else build_rom(structure, args.method, options)
     opts = app.sweep_options(scene, stability="off").continuation
     stopped = None
     try:
         resp = compute_force_response(model, args.omega, Harmonics(scene.solver.harmonics, scene.solver.samples),
-                                      lo, hi, opts)
-    except ContinuationError as exc:
-        if len(exc.points) < 2:
-            raise
-        raise SceneError("--scale", "scale", [lo, hi], f"the force sweep stopped: {exc}") from None
+                                      lo, hi, opts, resume=resume)
+    except ForceIncomplete as exc:  # the points so far are written, marked incomplete
+        resp, stopped = exc.response, exc
     if not parallel.is_root():
         return 0
-    summary = app.write_force(resp, scene, out, method=args.method)
+    summary = app.write_force(resp, scene, out, method=args.method, rom_options=options)
+    if stopped is not None:
+        print(f"jointfem: force sweep incomplete: {stopped}. The {summary['num_points']} converged points are in "
+              f"{out}/ (summary.json status \"incomplete\"; go on with --resume {out})", file=sys.stderr)
+        return 130 if stopped.interrupted else 3
     if not args.quiet:
         print(f"{summary['num_points']} points from scale {lo:g} to {resp.scale[-1]:.6g} at {args.omega:g} rad/s "
               f"-> {out}/")
@@ -217,6 +223,8 @@ def build_parser() -> argparse.ArgumentParser:
     fo.add_argument("--scale", type=float, nargs=2, default=(0.01, 1.0), metavar=("START", "END"),
                     help="the range of the factor on every force of the scene (default 0.01 1)")
     fo.add_argument("--out", help="output folder (default results/<scene name>_force)")
+    fo.add_argument("--resume", metavar="DIR", help="go on with the incomplete force sweep in DIR (same scene, "
+                    "omega, method, H, N); writes the whole branch into --out (default DIR)")
     fo.add_argument("--harmonics", type=int, help="number of harmonics H (overrides the scene)")
     fo.add_argument("--samples", type=int, help="AFT time samples N >= 2H+1 (overrides the scene)")
     fo.add_argument("--method", choices=METHODS, default="full", help="model reduction (default: full order)")

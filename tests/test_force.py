@@ -52,3 +52,48 @@ def test_force_command_writes_its_files(tmp_path):
     s = json.loads((out / "summary.json").read_text())
     assert s["omega_rad_s"] == 1.2 and s["status"] == "complete" and s["num_points"] == data.shape[0]
     assert (out / "force.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_a_force_sweep_that_stops_keeps_its_points_and_resumes(tmp_path):
+    """`jointfem force` stopped by its budget (max_points = 8) writes the converged points with
+    status incomplete and exits 3 with one line that says how to go on; --resume then ends with
+    the same branch as an uninterrupted run (points to 1e-8).  A folder of a frf run, or at
+    another omega, is refused with one line."""
+    text = (ROOT / "demos" / "sdof_jenkins.toml").read_text().replace("samples = 256\n",
+                                                                     "samples = 256\nmax_points = 8\n")
+    stopped = tmp_path / "sdof.toml"
+    stopped.write_text(text)
+    full = ROOT / "demos" / "sdof_jenkins.toml"
+    a, b = tmp_path / "a", tmp_path / "b"
+    args = ["--omega", "1.2", "--scale", "0.05", "5", "--quiet"]
+
+    def run(*extra):
+        return subprocess.run([sys.executable, "-m", "jointfem", "force", *extra, *args], capture_output=True,
+                              text=True)
+
+    r = run(str(stopped), "--out", str(a))
+    assert r.returncode == 3 and r.stderr.count("\n") == 1 and f"--resume {a}" in r.stderr, r.stderr
+    s = json.loads((a / "summary.json").read_text())
+    assert s["status"] == "incomplete" and "max_points" in s["stop_reason"] and s["num_points"] == 8
+    assert np.loadtxt(a / "force.csv", delimiter=",", skiprows=1).shape[0] == 8
+    r = run(str(full), "--resume", str(a))
+    assert r.returncode == 0, r.stderr
+    r = run(str(full), "--out", str(b))
+    assert r.returncode == 0, r.stderr
+    ra, rb = (np.load(f / "branch.npz") for f in (a, b))
+    assert json.loads((a / "summary.json").read_text())["status"] == "complete"
+    assert ra["scale"].size == rb["scale"].size > 8
+    np.testing.assert_allclose(ra["scale"], rb["scale"], rtol=1e-8, atol=0)
+    np.testing.assert_allclose(ra["U"], rb["U"], rtol=0, atol=1e-8 * np.abs(rb["U"]).max())
+    # refused with one line: a complete folder, another omega, a frf folder
+    r = run(str(full), "--resume", str(b))
+    assert r.returncode == 2 and "not incomplete" in r.stderr and r.stderr.count("\n") == 1, r.stderr
+    run(str(stopped), "--out", str(a))
+    r = subprocess.run([sys.executable, "-m", "jointfem", "force", str(full), "--omega", "1.3", "--scale", "0.05",
+                        "5", "--quiet", "--resume", str(a)], capture_output=True, text=True)
+    assert r.returncode == 2 and "omega_rad_s" in r.stderr and r.stderr.count("\n") == 1, r.stderr
+    f = tmp_path / "frf"
+    subprocess.run([sys.executable, "-m", "jointfem", "frf", str(stopped), "--out", str(f), "--quiet"],
+                   capture_output=True, text=True)
+    r = run(str(full), "--resume", str(f))
+    assert r.returncode == 2 and "not a force run" in r.stderr and r.stderr.count("\n") == 1, r.stderr

@@ -18,7 +18,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..continuation.arclength import Adaptive, ContinuationError, ContinuationOptions, continue_branch
+from ..continuation.arclength import (Adaptive, ContinuationError, ContinuationOptions, ContinuationPoint,
+                                      continue_branch)
 from ..harmonics import Harmonics
 from ..hbm.problem import Evaluation, Problem, Scales, newton_system
 from ..models.structure import Structure
@@ -126,12 +127,27 @@ class ForceResponse:
         return np.hypot(c[:, out], s[:, out])
 
 
+class ForceIncomplete(ContinuationError):
+    """A force sweep that stopped before scale_end (a stall, a budget, Ctrl-C): ``response`` holds the
+    points converged before it, with info["status"] = "incomplete" and info["stop_reason"]."""
+
+    def __init__(self, message: str, *, response: ForceResponse, points: list | None = None,
+                 interrupted: bool = False):
+        super().__init__(message, points=points, interrupted=interrupted)
+        self.response = response
+
+
 def compute_force_response(model: Structure | Reduction, omega: float, harmonics: Harmonics, scale_start: float,
                            scale_end: float, continuation: ContinuationOptions = ContinuationOptions(), *,
-                           callback=None) -> ForceResponse:
+                           callback=None, resume: dict | None = None) -> ForceResponse:
     """Continue the response at ``omega`` (rad/s) in the force scale from ``scale_start`` (the
-    stuck linear solution there) to ``scale_end``.  Raises ContinuationError (points kept) if the
-    branch cannot go on."""
+    stuck linear solution there) to ``scale_end``.
+
+    A branch that cannot go on (a stall, a budget, Ctrl-C) after at least two points raises
+    ForceIncomplete with its points as a ForceResponse (status "incomplete"); with fewer, the
+    ContinuationError.  ``resume``: the arrays of such a branch (branch.npz: ``scale``, ``U``,
+    ``residual``, ``ds_next``), continued from its last point with the step it would have taken,
+    so that the result is the whole branch, as if it had not stopped."""
     if not scale_start > 0 or not scale_end > scale_start:
         raise ValueError(f"force scales must be 0 < start < end, got {scale_start}, {scale_end}")
     t0 = time.perf_counter()
@@ -141,21 +157,54 @@ def compute_force_response(model: Structure | Reduction, omega: float, harmonics
                    lam_bounds=continuation.lam_bounds or (0.0, 2 * scale_end))
     if cont.newton.tol < problem.tol_floor:
         cont = replace(cont, newton=replace(cont.newton, tol=problem.tol_floor))
+
+    def record(x, lam):
+        return replace(problem.record(x, lam, problem.evaluate(x, lam, jacobian=False)), unknowns=problem.num_unknowns)
+
+    x0, lam0, before, heading = problem.initial_guess(scale_start), scale_start, [], None
+    if resume is not None:
+        S, U = np.asarray(resume["scale"], float), np.asarray(resume["U"], float)
+        if U.ndim != 2 or U.shape[1] != problem.num_coefficients or S.size < 2:
+            raise ValueError(f"resume: a branch of {U.shape} coefficients and {S.size} points cannot go on in a "
+                             f"problem of {problem.num_coefficients} coefficients")
+        adapt = problem.adaptation
+        for i in range(S.size - 1):
+            if adapt is not None:  # (each point is recorded in the state it was solved in)
+                adapt.restore(adapt.state_of(U[i]))
+            before.append(ContinuationPoint(U[i], float(S[i]), 0, 0.0, record(U[i], float(S[i])),
+                                            residual=float(resume["residual"][i]),
+                                            ds_next=float(resume["ds_next"][i])))
+        if adapt is not None:
+            adapt.restore(adapt.state_of(U[-1]))
+        x0, lam0 = U[-1], float(S[-1])
+        heading = (U[-1] - U[-2], S[-1] - S[-2]), float(resume["ds_next"][-1])
     steps = {}
-    points = continue_branch(newton_system(problem), problem.initial_guess(scale_start), scale_start, scale_end,
-                             x_scale=sc.x, lam_scale=scale_end - scale_start, r_scale=sc.r, options=cont,
-                             callback=callback, adapt=problem.adaptation, stats=steps,
-                             extra=lambda x, lam: replace(problem.record(x, lam, problem.evaluate(x, lam, jacobian=False)),
-                                                          unknowns=problem.num_unknowns))
+    stopped = None
+    try:
+        points = continue_branch(newton_system(problem), x0, lam0, scale_end,
+                                 x_scale=sc.x, lam_scale=scale_end - scale_start, r_scale=sc.r, options=cont,
+                                 callback=callback, adapt=problem.adaptation, stats=steps, extra=record,
+                                 resume=heading)
+    except ContinuationError as exc:
+        if len(before) + len(exc.points) < 2:
+            raise
+        points, stopped = exc.points, exc  # the branch so far is a result: kept, marked incomplete
+    points = before + points
     records = [p.extra for p in points]
     unknowns = np.array([r.unknowns for r in records])
     info = {"continuation": steps, "num_unknowns": int(unknowns.max()), "time_s": time.perf_counter() - t0,
             "arrays": {"residual": np.array([p.residual for p in points]),
+                       # the step the continuation takes from each point (``resume``)
+                       "ds_next": np.array([p.ds_next for p in points]),
                        "rom_size": np.array([r.size for r in records]), "unknowns": unknowns,
                        "pair_energy_J": np.array([r.pair_summary[:, 0] for r in records])}}
-    return ForceResponse(omega, np.array([p.lam for p in points]), np.array([p.x for p in points]),
-                         np.array([r.states for r in records], dtype=np.int8), harmonics,
-                         dict(problem.layout.outputs), info)
+    response = ForceResponse(omega, np.array([p.lam for p in points]), np.array([p.x for p in points]),
+                             np.array([r.states for r in records], dtype=np.int8), harmonics,
+                             dict(problem.layout.outputs), info)
+    if stopped is not None:
+        info.update(status="incomplete", stop_reason=str(stopped))
+        raise ForceIncomplete(str(stopped), response=response, points=points, interrupted=stopped.interrupted)
+    return response
 
 
-__all__ = ["ForceScaled", "ForceResponse", "compute_force_response", "ContinuationError"]
+__all__ = ["ForceScaled", "ForceResponse", "ForceIncomplete", "compute_force_response", "ContinuationError"]
