@@ -99,30 +99,49 @@ def dominant(data: dict) -> np.ndarray:
 # ---- matplotlib: pairs against frequency ---------------------------------------------------
 
 def plot_state_map(data: dict, path: Path, *, title: str = "") -> Picture:
-    """Every pair (rows) at every branch point (columns at its frequency, Hz, as in frf.png),
-    coloured by its dominant state."""
-    from matplotlib.colors import ListedColormap
+    """Every pair (rows) at every branch point (columns at its frequency, Hz, as in frf.png): a
+    stacked bar per pair and point whose parts are the shares of the period it sticks (bottom),
+    slips and is separated (top), so that a state held for part of the period shows in proportion
+    instead of being hidden by the dominant one."""
+    from matplotlib.collections import PolyCollection
     from matplotlib.patches import Patch
 
     from .plots import pyplot
 
     plt = pyplot()
-    dom = dominant(data)
-    P = dom.shape[1]
-    fig, ax = plt.subplots(figsize=(8, 1.6 + 0.12 * min(P, 60)))
-    omega = data["omega"]
-    order = np.arange(omega.size)
-    x = np.repeat(omega[order] / (2 * np.pi), P)  # Hz, as frf.png
-    y = np.tile(np.arange(P), omega.size)
-    ax.scatter(x, y, c=dom[order].ravel(), cmap=ListedColormap(STATE_COLORS), vmin=-0.5, vmax=2.5,
-               marker="s", s=max(4.0, 300.0 / max(P, 1)), linewidths=0)
+    st = data["states"]  # (points, N, P)
+    share = np.stack([(st == k).mean(axis=1) for k in range(3)], axis=-1)  # (points, P, 3)
+    n_pts, P = share.shape[:2]
+    fig, ax = plt.subplots(figsize=(8, 1.8 + 0.2 * min(P, 30)))
+    f = data["omega"] / (2 * np.pi)  # Hz, as frf.png
+    # each point's column reaches halfway to its neighbours along the branch (where the branch turns
+    # back, later points are drawn over earlier ones), and is at least 0.2 % of the range wide
+    mid = 0.5 * (f[1:] + f[:-1])
+    lo = np.append(f[0] - (mid[0] - f[0] if f.size > 1 else 0.5), mid)
+    hi = np.append(mid, f[-1] + (f[-1] - mid[-1] if f.size > 1 else 0.5))
+    lo, hi = np.minimum(lo, hi), np.maximum(lo, hi)
+    grow = np.maximum(0.002 * (np.ptp(f) or 1.0) - (hi - lo), 0.0)
+    x0 = np.repeat(lo - 0.5 * grow, P)
+    x1 = np.repeat(hi + 0.5 * grow, P)
+    width = float(np.max(hi - lo + grow))
+    row = np.tile(np.arange(P, dtype=float), n_pts) - 0.45
+    bottom = row.copy()
+    for k in range(3):
+        h = 0.9 * share[..., k].reshape(-1)
+        keep = h > 0
+        verts = np.stack([np.column_stack([x0, bottom]), np.column_stack([x1, bottom]),
+                          np.column_stack([x1, bottom + h]), np.column_stack([x0, bottom + h])], axis=1)[keep]
+        ax.add_collection(PolyCollection(verts, facecolors=STATE_COLORS[k], edgecolors="none", antialiased=False))
+        bottom = bottom + h
+    ax.set_xlim(x0.min(), x1.max())
+    ax.set_ylim(-0.6, P - 0.4)
     ax.set_xlabel("frequency [Hz]")
     ax.set_ylabel("contact pair")
-    shown = tuple(int(k) for k in np.unique(dom))
+    shown = tuple(k for k in range(3) if (share[..., k] > 0).any())
     labels = [STATE_NAMES[k] for k in range(3)]
     ax.legend([Patch(color=STATE_COLORS[k]) for k in range(3)], labels, loc="upper left", bbox_to_anchor=(1.0, 1.0),
-              fontsize=8, title="dominant state")
-    ax.set_title(title or "dominant contact state along the branch", fontsize=10)
+              fontsize=8, title="share of\nthe period", title_fontsize=8)
+    ax.set_title(title or "contact state of every pair along the branch", fontsize=10)
     fig.tight_layout()
     fig.set_dpi(100)
     fig.canvas.draw()
@@ -225,7 +244,9 @@ def plot_interface(data: dict, i: int, path: Path, *, title: str = "", window=(1
                 pad = 0.01 * abs(clim[0]) or 1.0
                 clim = [clim[0] - pad, clim[0] + pad]
         pl.add_mesh(target, scalars=label, cmap=cmap, clim=clim, lighting=False,
-                    scalar_bar_args={"title": label, "color": "black", "vertical": False,
+                    # the panel's own text names the quantity: the bar's title (which VTK draws over its
+                    # tick labels on a horizontal bar) is blank, unique per bar as pyvista keys bars by it
+                    scalar_bar_args={"title": " " * (k + 1), "color": "black", "vertical": False,
                                      "width": 0.8, "position_x": 0.1, "position_y": 0.05, "title_font_size": 10,
                                      "label_font_size": 9})
         bars.append(label)
@@ -282,7 +303,7 @@ def plot_shape(folder, i: int, path: Path, *, title: str = "", window=(1200, 600
     pl.set_background("white")
     pl.add_mesh(pv.PolyData(X), color="#bbbbbb", point_size=2, render_points_as_spheres=False)
     pl.add_mesh(cloud, scalars="|u| [m]", cmap="viridis", point_size=4, render_points_as_spheres=False,
-                scalar_bar_args={"title": "first-harmonic |u| [m]", "color": "black", "vertical": False,
+                scalar_bar_args={"title": "first-harmonic displacement amplitude [m]", "color": "black", "vertical": False,
                                  "width": 0.6, "position_x": 0.2, "position_y": 0.04})
     lo = X.min(axis=0)
     ruler = 10 ** np.floor(np.log10(extent / 3))
@@ -300,7 +321,7 @@ def plot_shape(folder, i: int, path: Path, *, title: str = "", window=(1200, 600
     pl.screenshot(str(tmp))
     pl.close()
     tmp.replace(path)
-    return Picture(path, tuple(window), colorbars=["first-harmonic |u| [m]"])
+    return Picture(path, tuple(window), colorbars=["first-harmonic displacement amplitude [m]"])
 
 
 def plot_folder(folder, *, point: str | None = "peak", omega: float | None = None) -> list[Picture]:
@@ -311,7 +332,8 @@ def plot_folder(folder, *, point: str | None = "peak", omega: float | None = Non
     if data["states"].ndim != 3 or data["states"].shape[2] == 0:
         raise OutputError(f"{folder}: the model has no contact pairs: nothing to draw")
     i = pick_point(data, point, omega)
-    pics = [plot_state_map(data, folder / "states_branch.png", title=f"{folder.name}: dominant state per pair")]
+    pics = [plot_state_map(data, folder / "states_branch.png",
+                           title=f"{folder.name}: share of the period in each state, per pair")]
     if "pair_coords" in data or (folder / "shape.npz").is_file():
         pics += _plot_vtk_isolated(folder, i, folder.name)
     return pics

@@ -104,7 +104,7 @@ def test_interface_map_stick_slip(stick_slip):
     assert all(_colour_pixels(bimg, branch.map_box, k) > 20 for k in (0, 1))
     shape = [p for p in pics if p.path.name.startswith("shape_")][0]
     simg = _assert_picture(shape)
-    assert shape.size == (1200, 600) and shape.colorbars == ["first-harmonic |u| [m]"]
+    assert shape.size == (1200, 600) and shape.colorbars == ["first-harmonic displacement amplitude [m]"]
     # the colour bar is drawn: a viridis gradient along the bottom 15 % of the picture, below the
     # model (measured 336 distinct colours of the ramp there)
     assert _viridis_colours(simg[int(0.85 * simg.shape[0]):]) > 200
@@ -175,3 +175,19 @@ def test_paraview_export_holds_the_solved_fields(tmp_path):
     share = sum(pairs.point_data[k] for k in ("stick_share", "slip_share", "separated_share"))
     np.testing.assert_allclose(share, 1.0)
     assert pairs.points.shape == (b["pair_coords"].shape[0], 3)
+
+
+def test_state_map_shows_each_share_not_the_dominant_state(tmp_path):
+    """A pair separated for 30 % of every period (never its dominant state) and one stuck all
+    period: the branch map draws separation in proportion, 0.3 / 2.0 = 15 % of the coloured area
+    (pixel rounding allows 13-17 %); the old dominant-state map drew none."""
+    n_pts, N = 40, 100
+    states = np.zeros((n_pts, N, 2), np.int8)
+    states[:, 70:, 0] = 2
+    data = {"states": states, "omega": np.linspace(1000.0, 1100.0, n_pts)}
+    pic = viz.plot_state_map(data, tmp_path / "s.png")
+    img = _assert_picture(pic)
+    red, blue = (_colour_pixels(img, pic.map_box, k) for k in (2, 0))
+    assert pic.states_shown == (0, 2) and set(np.unique(viz.dominant(data))) == {0}
+    assert 0.13 < red / (red + blue) < 0.17
+    assert _colour_pixels(img, pic.map_box, 1) == 0
