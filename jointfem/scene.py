@@ -267,12 +267,28 @@ def _lumped(top: _Table) -> LumpedSpec:
     dampers = links("damper", "c", {"ge": 0})
     jenkins = []
     for t in top.tables("jenkins", required=False):
-        ab = t.strings("between", min_len=2, max_len=2)
-        for i, nd in enumerate(ab):
-            if nd not in nodes and not (nd == GROUND and i == 1):
+        # between names two masses (or a mass and ground), or, as a spring's does, two DOFs of one
+        # axis (or a DOF and ground): that axis is then the tangential one unless given
+        raw = t.strings("between", min_len=2, max_len=2)
+        ab, named = [], set()
+        for i, nd in enumerate(raw):
+            mass, _, axis = nd.partition(".")
+            if nd == GROUND and i == 1:
+                ab.append(nd)
+                continue
+            if mass not in nodes:
                 t.fail("between", nd, "no such mass" + (" (ground goes second)" if nd == GROUND else ""))
-        tang = t.strings("tangential", min_len=1, max_len=2)
+            if axis:
+                _check_dofs(t, "between", [nd], known)
+                named.add(axis)
+            ab.append(mass)
+        if len(named) > 1:
+            t.fail("between", list(raw), "DOFs of different axes: a Jenkins element joins the same axis of both ends")
+        tang = t.strings("tangential", tuple(named) if named else _REQUIRED, min_len=1, max_len=2)
         normal = t.string("normal", None)
+        if named and not named <= set(tang) | {normal}:
+            t.fail("between", list(raw), f"names axis {sorted(named)[0]!r}, which is neither tangential "
+                   f"{list(tang)} nor normal ({normal})")
         axes = list(tang) + ([normal] if normal is not None else [])
         if len(set(axes)) != len(axes):
             t.fail("tangential", list(tang), "tangential and normal axes must differ")

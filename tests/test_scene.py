@@ -40,6 +40,10 @@ BAD = {
     "beam output": (BEAM.replace('"b2.mid.uy"]', '"b3.mid.uy"]'), "output.dofs", "b3.mid.uy"),
     "beam odd elements": (BEAM.replace("elements = 20", "elements = 21"), "beam.elements", "21"),
     "unknown kind": (SDOF.replace('kind = "lumped"', 'kind = "shell"'), "kind", "shell"),
+    "jenkins dof": (SDOF.replace('between = ["m", "ground"]', 'between = ["m.y", "ground"]'), "jenkins[0].between", "m.y"),
+    "jenkins dof axis": (SDOF.replace('between = ["m", "ground"]\ntangential = ["x"]',
+                                      'between = ["m.x", "ground"]\ntangential = ["y"]'),
+                         "jenkins[0].between", "['m.x', 'ground']"),
 }
 
 
@@ -178,3 +182,23 @@ def test_undamped_forced_mode_that_friction_cannot_hold_is_refused(tmp_path):
     sdof = (ROOT / "demos" / "sdof_jenkins.toml").read_text().replace("c = 0.02", "c = 0.0")
     p.write_text(sdof)
     check_forced_resonances(load_scene(p), create_structure(load_scene(p)))
+
+
+def test_jenkins_between_names_dofs_as_a_spring_does(tmp_path):
+    """`between = ["m.x", "ground"]` (DOF names, as springs take them) is the same element as
+    `between = ["m", "ground"]` with `tangential = ["x"]`: the same stuck stiffness and the same
+    nonlinear force."""
+    import numpy as np
+
+    from jointfem.harmonics import Harmonics
+
+    dof_style = SDOF.replace('between = ["m", "ground"]\ntangential = ["x"]', 'between = ["m.x", "ground"]')
+    assert dof_style != SDOF
+    a = create_structure(load_scene(_write(tmp_path, SDOF, "a.toml")))
+    b = create_structure(load_scene(_write(tmp_path, dof_style, "b.toml")))
+    assert np.array_equal(a.K_lin.toarray(), b.K_lin.toarray())
+    h = Harmonics(3, 64)
+    G = np.zeros((h.num_hc, 1, 1))
+    G[1] = 3.0  # slipping: |kt g| = 3 > mu N0 = 1
+    fa, fb = (s.contacts[0].pairs.aft(G, h, jacobian=False).F for s in (a, b))
+    assert np.array_equal(fa, fb) and np.abs(fa).max() > 0
