@@ -18,13 +18,12 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..continuation.arclength import (Adaptive, ContinuationError, ContinuationOptions, ContinuationPoint,
-                                      continue_branch)
+from ..continuation.arclength import Adaptive, ContinuationError, ContinuationOptions, continue_branch
 from ..harmonics import Harmonics
 from ..hbm.problem import Evaluation, Problem, Scales, newton_system
 from ..models.structure import Structure
 from ..rom.common import Reduction
-from .frf import create_problem
+from .frf import create_problem, resumed_points
 
 
 class ForceScaled(Problem):
@@ -163,21 +162,9 @@ def compute_force_response(model: Structure | Reduction, omega: float, harmonics
 
     x0, lam0, before, heading = problem.initial_guess(scale_start), scale_start, [], None
     if resume is not None:
-        S, U = np.asarray(resume["scale"], float), np.asarray(resume["U"], float)
-        if U.ndim != 2 or U.shape[1] != problem.num_coefficients or S.size < 2:
-            raise ValueError(f"resume: a branch of {U.shape} coefficients and {S.size} points cannot go on in a "
-                             f"problem of {problem.num_coefficients} coefficients")
-        adapt = problem.adaptation
-        for i in range(S.size - 1):
-            if adapt is not None:  # (each point is recorded in the state it was solved in)
-                adapt.restore(adapt.state_of(U[i]))
-            before.append(ContinuationPoint(U[i], float(S[i]), 0, 0.0, record(U[i], float(S[i])),
-                                            residual=float(resume["residual"][i]),
-                                            ds_next=float(resume["ds_next"][i])))
-        if adapt is not None:
-            adapt.restore(adapt.state_of(U[-1]))
-        x0, lam0 = U[-1], float(S[-1])
-        heading = (U[-1] - U[-2], S[-1] - S[-2]), float(resume["ds_next"][-1])
+        before, (x0, lam0), heading = resumed_points(problem, resume["scale"], resume["U"], resume["residual"], record,
+                                                     ds_next=resume["ds_next"])
+        heading = heading, float(resume["ds_next"][-1])
     steps = {}
     stopped = None
     try:

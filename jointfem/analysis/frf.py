@@ -72,6 +72,30 @@ class Resume:
     ds_next: float
 
 
+def resumed_points(problem: Problem, lam: np.ndarray, X: np.ndarray, residual: np.ndarray, record, *,
+                   iterations: np.ndarray | None = None, ds_next: np.ndarray | None = None):
+    """The points of a stopped branch (parameter ``lam``, coefficients ``X`` per point) but its last,
+    recorded again as ContinuationPoints (each in the active set it was solved in), the last point
+    (x, lam) to continue from with the problem restored to its state there, and the heading there
+    (the secant of the last step), for continue_branch's ``resume``.  Shared by the sweeps in omega
+    and in force that --resume continues."""
+    X, lam = np.asarray(X, float), np.asarray(lam, float)
+    if X.ndim != 2 or X.shape[1] != problem.num_coefficients or lam.size < 2:
+        raise ValueError(f"resume: a branch of {X.shape} coefficients and {lam.size} points cannot go on in a "
+                         f"problem of {problem.num_coefficients} coefficients")
+    adapt = problem.adaptation
+    before = []
+    for i in range(lam.size - 1):
+        if adapt is not None:  # (each point is recorded in the state it was solved in)
+            adapt.restore(adapt.state_of(X[i]))
+        before.append(ContinuationPoint(X[i], float(lam[i]), 0 if iterations is None else int(iterations[i]), 0.0,
+                                        record(X[i], float(lam[i])), residual=float(residual[i]),
+                                        ds_next=0.0 if ds_next is None else float(ds_next[i])))
+    if adapt is not None:
+        adapt.restore(adapt.state_of(X[-1]))
+    return before, (X[-1], float(lam[-1])), (X[-1] - X[-2], lam[-1] - lam[-2])
+
+
 def compute_frf(model: Structure | Reduction, options: SweepOptions, *,
                 callback: Callable[[ContinuationPoint], None] | None = None,
                 resume: Resume | None = None) -> FrequencyResponse:
@@ -122,20 +146,9 @@ def compute_frf(model: Structure | Reduction, options: SweepOptions, *,
         cont = replace(cont, max_rel_change=1.0)
     U0, omega0, before, heading = problem.initial_guess(options.omega_start), options.omega_start, [], None
     if resume is not None:
-        if resume.U.shape[1] != problem.num_coefficients or resume.omega.size < 2:
-            raise ValueError(f"resume: a branch of {resume.U.shape[1]} coefficients and {resume.omega.size} points "
-                             f"cannot go on in a problem of {problem.num_coefficients} coefficients")
-        U0, omega0 = resume.U[-1], float(resume.omega[-1])
-        heading = (resume.U[-1] - resume.U[-2], resume.omega[-1] - resume.omega[-2]), resume.ds_next
-        before = []
-        for i in range(resume.omega.size - 1):
-            if problem.adaptation is not None:  # (each point is recorded in the state it was solved in)
-                problem.adaptation.restore(problem.adaptation.state_of(resume.U[i]))
-            before.append(ContinuationPoint(resume.U[i], float(resume.omega[i]), int(resume.iterations[i]), 0.0,
-                                            record(resume.U[i], float(resume.omega[i])),
-                                            residual=float(resume.residual[i])))
-        if problem.adaptation is not None:
-            problem.adaptation.restore(problem.adaptation.state_of(U0))
+        before, (U0, omega0), heading = resumed_points(problem, resume.omega, resume.U, resume.residual, record,
+                                                       iterations=resume.iterations)
+        heading = heading, resume.ds_next
     t1 = time.perf_counter()
     steps = {}
     stopped = None
