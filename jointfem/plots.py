@@ -100,17 +100,16 @@ def plot_levels(curves: list[tuple[str, FrequencyResponse]], output: str, path: 
     truncation estimate (branch.npz ``harmonic_error``) exceeds ``harmonic_tol``."""
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(7.5, 4.5))
-    for label, frf in curves:
+    for name, frf in curves:
         f, a = frf.omega / (2 * np.pi), frf.amplitude(frf.outputs[output])
-        if frf.stable is None:
-            label = f"{label} (stability not computed)"
+        label = name if frf.stable is not None else f"{name} (stability not computed)"
         line = plot_branch(ax, f, a, frf.stable, label=label)
         he = frf.info.get("arrays", {}).get("harmonic_error")
         if he is not None and np.max(he) > harmonic_tol:
             bad = np.asarray(he) > harmonic_tol
             on = bad | np.append(bad[1:], False) | np.append(False, bad[:-1])
             ax.plot(f, np.where(on, a, np.nan), ls=":", lw=3, color=line.get_color(),
-                    label=f"{label.split(' (')[0]}: H = {frf.harmonics.H} not converged (truncation "
+                    label=f"{name}: H = {frf.harmonics.H} not converged (truncation "
                           f"estimate up to {np.max(he):.2f} > {harmonic_tol:g})")
     ax.set_xlabel("frequency [Hz]")
     ax.set_ylabel(f"{output} receptance [m/N]")

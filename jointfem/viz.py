@@ -109,8 +109,7 @@ def plot_state_map(data: dict, path: Path, *, title: str = "") -> Picture:
     from .plots import pyplot
 
     plt = pyplot()
-    st = data["states"]  # (points, N, P)
-    share = np.stack([(st == k).mean(axis=1) for k in range(3)], axis=-1)  # (points, P, 3)
+    share = np.stack([fractions(data, i) for i in range(data["states"].shape[0])])  # (points, P, 3)
     n_pts, P = share.shape[:2]
     fig, ax = plt.subplots(figsize=(8, 1.8 + 0.2 * min(P, 30)))
     f = data["omega"] / (2 * np.pi)  # Hz, as frf.png
@@ -123,7 +122,6 @@ def plot_state_map(data: dict, path: Path, *, title: str = "") -> Picture:
     grow = np.maximum(0.002 * (np.ptp(f) or 1.0) - (hi - lo), 0.0)
     x0 = np.repeat(lo - 0.5 * grow, P)
     x1 = np.repeat(hi + 0.5 * grow, P)
-    width = float(np.max(hi - lo + grow))
     row = np.tile(np.arange(P, dtype=float), n_pts) - 0.45
     bottom = row.copy()
     for k in range(3):
