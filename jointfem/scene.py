@@ -25,6 +25,7 @@ from .models.lumped import AXES, GROUND, ForceSpec, GapSpringSpec, JenkinsSpec, 
 from .models.lumped import dof_names as lumped_dof_names
 
 KINDS = ("lumped", "beam2d", "continuum2d", "continuum3d", "matrices")
+AFT_KINDS = ("sampled", "events")
 
 
 class SceneError(ValueError):
@@ -57,6 +58,9 @@ class SolverSpec:
     max_points: int = ContinuationOptions.max_points
     time_limit: float = 3600.0  # s per branch: a sweep that cannot go on stops, keeping its points
     kink_tol: float = NewtonOptions.relaxed_kink_tol  # residual accepted for a corrector stalled on a kink at the smallest steps
+    # "sampled": the Jenkins law at the AFT's samples; "events": switches located between samples
+    # and the forces integrated over the pieces (jointfem.contact._events; one tangential direction)
+    aft: str = "sampled"
 
     @property
     def omega_start(self) -> float:
@@ -214,7 +218,7 @@ def _solver(t: _Table) -> SolverSpec:
         tol=t.number("tol", SolverSpec.tol, gt=0), max_points=t.integer("max_points", SolverSpec.max_points, ge=2),
         kink_tol=t.number("kink_tol", SolverSpec.kink_tol, gt=0),
         time_limit=t.number("time_limit", SolverSpec.time_limit, gt=0), harmonics_auto=auto, harmonic_target=target,
-        harmonics_max=H_max, samples_given=t.has("samples"))
+        harmonics_max=H_max, samples_given=t.has("samples"), aft=t.string("aft", "sampled", choices=AFT_KINDS))
     if spec.kink_tol > 1e-3:
         t.fail("kink_tol", spec.kink_tol, "must be <= 1e-3 (a residual of 0.1 % of the force)")
     if not spec.ds_min <= spec.ds0 <= spec.ds_max:
@@ -598,7 +602,18 @@ def parse_scene(data: dict, path="<scene>") -> Scene:
     else:
         model = _continuum(top, kind, path)
     top.done()
+    if solver.aft == "events":
+        _check_events(path, kind, model)
     return Scene(Path(str(path)), kind, name, solver, model, data)
+
+
+def _check_events(path, kind: str, model) -> None:
+    """The event-accurate AFT has one tangential direction per pair: refuse a scene with two."""
+    two = kind == "continuum3d" or (kind in ("lumped", "matrices") and any(
+        len(j.tangential) == 2 for j in model.jenkins))
+    if two:
+        raise SceneError(path, "solver.aft", "events", "the event-accurate AFT has one tangential direction per "
+                         "pair; this scene has pairs with two (3D contact): use aft = \"sampled\"")
 
 
 def check_solvable(scene: Scene) -> None:
@@ -646,7 +661,16 @@ def _check_lumped_supports(scene: Scene) -> None:
 
 
 def create_structure(scene: Scene):
-    """Build the physical model of a scene (only the kind it needs is imported)."""
+    """Build the physical model of a scene (only the kind it needs is imported), with the contact
+    law's AFT that [solver] aft names."""
+    structure = _create_structure(scene)
+    if scene.solver.aft == "events":
+        from .models.structure import with_event_aft
+        structure = with_event_aft(structure)
+    return structure
+
+
+def _create_structure(scene: Scene):
     if scene.kind == "lumped":
         from .models.lumped import create_lumped
         return create_lumped(scene.model)

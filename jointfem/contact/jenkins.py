@@ -45,6 +45,7 @@ from functools import lru_cache
 import numpy as np
 
 from ..harmonics import Harmonics
+from ._events import MAX_EVENTS, event_kernel, event_tables
 from ._kernels import aft_kernel, product_table
 from .law import (SEPARATED, SLIP, STATE_NAMES, STICK, ContactError, ContactLaw, ContactResult,  # noqa: F401
                   check_gaps, loop_energy)
@@ -60,6 +61,7 @@ class JenkinsPairs(ContactLaw):
     N0: np.ndarray  # normal preload, N (compressive positive)
     num_tangential: int = 1
     has_normal: bool = False
+    events: bool = False  # event-accurate AFT (_events.py) instead of the sampled law; one tangential direction
 
     name = "jenkins"
 
@@ -75,6 +77,9 @@ class JenkinsPairs(ContactLaw):
                 raise ValueError(f"JenkinsPairs.{name} has shape {a.shape}, expected ({P},)")
         if self.num_tangential not in (1, 2):
             raise ValueError(f"num_tangential must be 1 or 2, got {self.num_tangential!r}")
+        if self.events and self.num_tangential != 1:
+            raise ValueError("the event-accurate AFT (aft = \"events\") has one tangential direction; "
+                             f"these pairs have {self.num_tangential}")
 
     @property
     def num_pairs(self) -> int:
@@ -113,7 +118,7 @@ class JenkinsPairs(ContactLaw):
 
     def subset(self, index: np.ndarray) -> "JenkinsPairs":
         return JenkinsPairs(kt=self.kt[index], kn=self.kn[index], mu=self.mu[index], N0=self.N0[index],
-                            num_tangential=self.num_tangential, has_normal=self.has_normal)
+                            num_tangential=self.num_tangential, has_normal=self.has_normal, events=self.events)
 
     def linear_breaks(self, g_t: np.ndarray, *, tol: float) -> np.ndarray:
         """Components whose force, were they stuck at the unloaded position (the linear spring),
@@ -193,6 +198,8 @@ def compute_aft(pairs: JenkinsPairs, G: np.ndarray, harmonics: Harmonics, *, jac
     Raises ContactError if a slider's periodic steady state is not found.
     """
     G = check_gaps(pairs, G, harmonics)
+    if pairs.events:
+        return compute_aft_events(pairs, G, harmonics, jacobian=jacobian, rtol=rtol, max_iter=max_iter)
     num_hc, P, m = G.shape
     g_t = np.ascontiguousarray(harmonics.to_time(G))
     N = harmonics.N
@@ -212,6 +219,58 @@ def compute_aft(pairs: JenkinsPairs, G: np.ndarray, harmonics: Harmonics, *, jac
                            f"periods; worst: pair {bad}, relative change {errs[bad]:.3e} > {rtol:.1e}")
     J = J.reshape(P, num_hc, m, num_hc, m) if jacobian else None
     return ContactResult(harmonics.from_time(f_t), J, f_t, g_t, state_t, w_start)
+
+
+@lru_cache(maxsize=16)
+def _event_operators(harmonics: Harmonics):
+    """Synthesis of tau-rates at the samples (gammad), the running integrals Tcum
+    (_events.event_tables), and 4-point Gauss-Legendre on [0, 1] (xq, wq)."""
+    gammad = np.ascontiguousarray(harmonics.gamma @ harmonics.derivative_matrix())
+    x, w = np.polynomial.legendre.leggauss(4)
+    xq, wq = 0.5 * (x + 1.0), 0.5 * w
+    return gammad, event_tables(harmonics.N, harmonics.num_hc), xq, wq
+
+
+def compute_aft_events(pairs: JenkinsPairs, G: np.ndarray, harmonics: Harmonics, *, jacobian: bool = True,
+                       rtol: float = 1e-10, max_iter: int = 50) -> ContactResult:
+    """The event-accurate AFT (_events.py): switches located between samples on the cubic Hermite
+    interpolant of the gaps, force coefficients integrated over the pieces between them.
+
+    Same arguments and result as compute_aft; f_t and state_t are the force and state at the samples.
+    """
+    num_hc, P, m = G.shape
+    g_t = np.ascontiguousarray(harmonics.to_time(G))
+    gammad, Tcum, xq, wq = _event_operators(harmonics)
+    gd_t = np.ascontiguousarray(harmonics.to_time(np.einsum("jk,kpa->jpa", harmonics.derivative_matrix(), G)))
+    N = harmonics.N
+    F = np.zeros((P, num_hc, m))
+    J = np.zeros((P, num_hc, m, num_hc * m) if jacobian else (P, 1, 1, 1))
+    f_t = np.zeros((N, P, m))
+    state_t = np.zeros((N, P), dtype=np.int8)
+    res = np.zeros((P, 4))
+    event_kernel(g_t, gd_t, np.ascontiguousarray(G), np.ascontiguousarray(harmonics.gamma), gammad, Tcum, xq, wq,
+                 pairs.kt, pairs.kn, pairs.mu,
+                 pairs.N0, pairs.has_normal, jacobian, max_iter, rtol, F, J, f_t, state_t, res)
+    status = res[:, 1]
+    if (status == 2).any():
+        bad = int(np.argmax(status == 2))
+        raise ContactError(f"event-accurate AFT: more than {MAX_EVENTS} switches of pair {bad} between samples "
+                           f"{int(res[bad, 3])} and {int(res[bad, 3]) + 1} of {N}; use more samples")
+    if status.any():
+        bad = int(np.argmax(res[:, 2] * (status == 1)))
+        raise ContactError(f"slider steady state not reached for {int((status == 1).sum())} pair(s) after "
+                           f"{max_iter} periods (event-accurate AFT); worst: pair {bad}, relative change "
+                           f"{res[bad, 2]:.3e} > {rtol:.1e}")
+    # the stuck spring f0 + Kc g exactly (the kernel integrated the departure from it), so that a
+    # pair stuck all period is exactly linear, as with the sampled law
+    F = F.transpose(1, 0, 2) + pairs.stiffness[None] * G
+    F[0] += pairs.preload
+    Jr = None
+    if jacobian:
+        Jr = J.reshape(P, num_hc, m, num_hc, m)
+        for a in range(m):
+            Jr[:, np.arange(num_hc), a, np.arange(num_hc), a] += pairs.stiffness[:, a, None]
+    return ContactResult(np.ascontiguousarray(F), Jr, f_t, g_t, state_t, res[:, :1].copy())
 
 
 def compute_dissipation(f_t: np.ndarray, g_t: np.ndarray) -> np.ndarray:

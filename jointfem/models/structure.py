@@ -1,11 +1,12 @@
 """The physical model handed from the builders to the solvers: plain NumPy/SciPy data."""
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import scipy.sparse as sp
 
+from ..contact.jenkins import JenkinsPairs
 from ..contact.law import ContactLaw
 
 
@@ -128,3 +129,11 @@ class Structure:
             out.append(sp.linalg.spsolve(Z, f))
         X = np.array(out)
         return X[0] if np.ndim(omega) == 0 else X
+
+
+def with_event_aft(structure: Structure) -> Structure:
+    """The same structure with every Jenkins group evaluated by the event-accurate AFT
+    (jointfem.contact._events); other laws are unchanged."""
+    groups = tuple(replace(g, pairs=replace(g.pairs, events=True)) if isinstance(g.pairs, JenkinsPairs) else g
+                   for g in structure.contacts)
+    return replace(structure, contacts=groups)
