@@ -43,7 +43,8 @@ CASES = [
     ("beam 3 N, H = 15, N = 4096", "demos/beam2d.toml", "full", 0, 3.0, 15, 4096, 600),
 ]
 QUICK = {"beam 3 N, H = 11", "lap2d 3 N, full"}
-OLD = dict(corner_steps=False, secant_on_kinks=False, corrector_max_iter=40)  # the continuation before
+OLD = dict(corner_steps=False, secant_on_kinks=False, kink_lam_steps=False,
+           corrector_max_iter=40)  # the continuation before
 
 
 def scene_at_force(path: Path, force: float, tmp: Path) -> Path:
@@ -132,19 +133,21 @@ def main():
         f"    .venv/bin/python benchmarks/corners.py --out {args.out} --jobs {args.jobs}"
         + (" --quick" if args.quick else ""),
         "",
-        "\"now\": the continuation with corner steps and secants on kinks (docs/theory.md, Continuation). "
-        "\"before\": the same sweep with both off and 40 corrector iterations, as before issue 14. "
+        "\"now\": the continuation with corner steps, secants on kinks and steps over kinks at fixed omega "
+        "(docs/theory.md, Continuation). \"before\": the same sweep with all three off and 40 corrector "
+        "iterations, as before issue 14. "
         "Each sweep has the budget in the table (`[solver] time_limit`). Residual: the largest accepted "
         "max|R| / max|F| over the points. Peak: the first output's located peak (first harmonic).",
         "",
-        "| sweep | continuation | status | points | refused | corners | online [s] | max residual | peak |",
-        "|---|---|---|---|---|---|---|---|---|",
+        "| sweep | continuation | status | points | refused | corners | kinks crossed | online [s] | max residual | peak |",
+        "|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
         budget = next(c[7] for c in CASES if c[0] == r["case"])
         status = r["status"] if r["status"] == "complete" else f"{r['status']} (at {r.get('reached', '-')} rad/s)"
         lines.append(f"| {r['case']} (budget {budget} s) | {r['variant']} | {status} | {r['points']} | "
-                     f"{r.get('refused_steps', '-')} | {r.get('corners_passed', '-')} | {r['online_s']:.0f} | "
+                     f"{r.get('refused_steps', '-')} | {r.get('corners_passed', '-')} | {r.get('kinks_crossed', '-')} | "
+                     f"{r['online_s']:.0f} | "
                      f"{r['residual_max']:.1e} | {r.get('peak', '-')} |")
     Path(args.out).write_text("\n".join(lines) + "\n")
     print("wrote", args.out)

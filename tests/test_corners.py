@@ -59,8 +59,64 @@ def test_beam_h11_stalls_without_corner_steps(beam11):
     scene, s = beam11
     opts = sweep_options(scene, stability="off")
     opts = replace(opts, locate_peaks=False, continuation=replace(
-        opts.continuation, corner_steps=False, secant_on_kinks=False, ds_min=1e-4))
+        opts.continuation, corner_steps=False, secant_on_kinks=False, kink_lam_steps=False, ds_min=1e-4))
     with pytest.raises(ContinuationError, match=r"ds_min") as err:
         compute_frf(s, opts)
     lam = err.value.points[-1].lam  # at the separation onset (1690.12 rad/s, or a fold on a kink before it)
     assert 1689.0 < lam < 1690.2, lam
+
+
+def _kinked(fold: bool):
+    """R(x, lam) on two pieces split at x2 = 0, continuous across it: x1 + 20 max(x2, 0) = lam and
+    x2 - (2 max(x2, 0) if fold) = 0.1 (lam - 10), scaled unknowns of order 1 and lam in [0, 20] (so
+    the branch is steep, as the beam's is at its separation onset).  Without ``fold`` the branch
+    goes on in lam past the kink at lam = 10, its tangent turning by about 174 deg in the scaled
+    space (x1 reverses, x2 and lam go on): the hyperplane of a step along the incoming tangent does
+    not meet it beyond the kink.  With ``fold`` the second piece has det < 0 and the branch turns
+    back at lam = 10: nothing lies beyond."""
+    c = 2.0 if fold else 0.0
+
+    def fun(x, lam):
+        up = x[1] > 0
+        R = np.array([x[0] + 20.0 * max(x[1], 0.0) - lam, x[1] - c * max(x[1], 0.0) - 0.1 * (lam - 10.0)])
+        J = np.array([[1.0, 20.0 if up else 0.0], [0.0, 1.0 - c if up else 1.0]])
+        return R, J, np.array([-1.0, -0.1])
+
+    return fun
+
+
+@pytest.mark.parametrize("lam_steps", [False, True])
+def test_a_kink_that_turns_the_tangent_back_is_crossed_at_fixed_lam(lam_steps):
+    """The continuation stalls at the kink (step below ds_min, measured: 108 points at lam = 10)
+    unless it steps over it at fixed lam (ContinuationOptions.kink_lam_steps); then it completes,
+    monotone in lam, on the exact solution, with one kink crossed (measured)."""
+    from jointfem.continuation.arclength import ContinuationOptions, continue_branch
+    fun = _kinked(fold=False)
+    opts = replace(ContinuationOptions(), kink_lam_steps=lam_steps)
+    stats = {}
+    run = lambda: continue_branch(fun, np.array([0.0, -1.0]), 0.0, 20.0, x_scale=1.0, lam_scale=20.0,  # noqa: E731
+                                  r_scale=1.0, options=opts, stats=stats)
+    if not lam_steps:
+        with pytest.raises(ContinuationError, match="ds_min") as err:
+            run()
+        assert abs(err.value.points[-1].lam - 10.0) < 1e-4
+        return
+    pts = run()
+    lam = np.array([p.lam for p in pts])
+    assert lam[-1] >= 20.0 and np.all(np.diff(lam) > 0)
+    assert stats["kinks_crossed"] >= 1
+    x = np.array([p.x for p in pts])
+    exact = np.column_stack([lam - 20.0 * np.maximum(0.1 * (lam - 10.0), 0.0), 0.1 * (lam - 10.0)])
+    assert np.abs(x - exact).max() < 1e-9
+
+
+def test_a_fold_on_a_kink_is_not_stepped_over_at_fixed_lam():
+    """Where the branch turns back at the kink there is no solution beyond it at fixed lam: the
+    step over it is never taken (no point past lam = 10), and the sweep stops with a clear error."""
+    from jointfem.continuation.arclength import ContinuationOptions, continue_branch
+    stats = {}
+    with pytest.raises(ContinuationError) as err:
+        continue_branch(_kinked(fold=True), np.array([0.0, -1.0]), 0.0, 20.0, x_scale=1.0, lam_scale=20.0,
+                        r_scale=1.0, options=ContinuationOptions(), stats=stats)
+    assert max(p.lam for p in err.value.points) < 10.0 + 1e-5
+    assert stats["kinks_crossed"] == 0

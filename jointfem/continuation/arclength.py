@@ -122,6 +122,9 @@ class ContinuationOptions:
     # a corrector converges in at most 5 iterations on the beam and lap joints (measured); one that
     # has not in this many is cycling between the pieces of a kink, and the step is refused sooner
     corrector_max_iter: int = 15
+    # steps over kinks at fixed lam: a step refused at most corner_ds long is tried again as Newton at
+    # fixed lam = lam + ds t_lam from the predictor, where the branch goes on in lam (see across())
+    kink_lam_steps: bool = True
     # kink-aware steps: the secant is the tangent at a point whose corrector stalled on a kink, and a
     # tangent's turn beyond max_turn_deg that stays as large when the step halves is a corner, accepted
     secant_on_kinks: bool = True
@@ -430,7 +433,7 @@ def continue_branch(fun: Callable, x0: np.ndarray, lam0: float, lam_end: float, 
     cos_rev = -np.cos(np.deg2rad(opts.max_reversal_deg))
     redo = 0
     counts = stats if stats is not None else {}
-    counts.update(refused_steps=0, corners_passed=0, redone_steps=0)
+    counts.update(refused_steps=0, corners_passed=0, kinks_crossed=0, redone_steps=0)
 
     def stop(why: str):
         return ContinuationError(f"continuation stopped at lam = {mu * lam_scale:.9g} before reaching "
@@ -544,6 +547,48 @@ def continue_branch(fun: Callable, x0: np.ndarray, lam0: float, lam_end: float, 
             return None
         return z0 + hi * d, t2
 
+    def across(d, ds):
+        """A kink that the corrector on the hyperplane normal to d cannot cross, on a branch that goes
+        on in lam: one step at fixed lam.
+
+        At the onset of slip or of separation of a pair whose load only just reaches its limit (a
+        grazing switch), the slider's motion is continuous but not differentiable in the gaps (its
+        slip grows like max(0, overshoot)), for the sampled law and in continuous time alike
+        (docs/theory.md, Known limits).  The Jacobian then differs across the kink, the bordered
+        determinant may change sign, and Newton on the hyperplane cycles between the pieces for
+        every step length, while Newton at fixed lam converges on the far side.  The predictor
+        z + ds d is corrected at its lam; the point is accepted within max_jump step lengths of the
+        last point, its tangent oriented along the secant (the orientation is read there again).
+        Returns attempt()'s tuple, or None where d does not advance lam."""
+        if d[-1] * direction <= 0:
+            return None
+        z0 = np.append(y, mu)
+        z_p = z0 + ds * d
+        nopts = replace(opts.newton, max_iter=min(opts.newton.max_iter, opts.corrector_max_iter))
+
+        def F(y_):
+            R, J, _ = g(y_, z_p[-1])
+            return R, J
+
+        try:
+            y_new, it, res = _damped_newton(F, z_p[:-1].copy(), nopts, "corrector at fixed lam",
+                                            lambda _: z_p[-1] * lam_scale)
+            mu_new = z_p[-1]
+            changed = adapt is not None and adapt.after_converge(space.full(y_new), mu_new * lam_scale)
+            if changed:
+                return y_new, mu_new, it, res, None, None, True, None
+            R, J, dl = g(y_new, mu_new)
+            sec = np.append(y_new, mu_new) - z0
+            jump = float(np.linalg.norm(sec))
+            if jump > opts.max_jump * ds:
+                return None
+            t_new, orient_new = _tangent(J, dl, sec / max(jump, 1e-300))
+        except (ConvergenceError, np.linalg.LinAlgError, RuntimeError):
+            return None
+        if t_new[-1] * direction <= 0:  # the piece beyond turns back: a fold on the kink, not a crossing
+            return None
+        return y_new, mu_new, it, res, t_new, orient_new, False, None
+
     def g(y_, mu_):  # (the steps' closures below see this binding)
         # the time limit also holds inside a step (one corrector of the exact condensation on the
         # 3D lap joint took 300 s): past it, the evaluation stops the branch
@@ -579,6 +624,13 @@ def continue_branch(fun: Callable, x0: np.ndarray, lam0: float, lam_end: float, 
                         d = d2
                         y_new, mu_new, it, res, t_new, orient_new, changed, failure = out
                         counts["corners_passed"] += not changed
+            if failure is not None and opts.kink_lam_steps and ds <= opts.corner_ds:
+                out = across(t, ds)
+                if out is not None:
+                    log.debug("kink crossed at fixed lam=%.9g (%s)", out[1] * lam_scale, failure)
+                    d = t
+                    y_new, mu_new, it, res, t_new, orient_new, changed, failure = out
+                    counts["kinks_crossed"] += not changed
             if failure is None and changed:
                 y, t = rebase(y, t)
                 R, J, dl = g(y, mu)
