@@ -293,22 +293,18 @@ def _pair(g, gd, Gp, gamma, gammad, Tcum, xq, wq, kt, kn, mu, N0, has_normal, wa
                                   -kt * t3 - mu * n3, s)
                     if x < se:
                         se, which = x, 1
-                    if has_normal:
-                        x = _crossing(-n0, -n1, -n2, -n3, s)
-                        if x < se:
-                            se, which = x, 2
-                elif st == SLIP:
+                elif st == SLIP and mu > 0.0:
                     # the slider's rate sig (g_t' - sig mu N'/kt) falls through zero: stick (never
                     # without friction: the slider follows the gap)
-                    x = 2.0 if mu == 0.0 else _crossing(-(sig * kt * t1 - mu * n1), -(sig * kt * 2.0 * t2 - mu * 2.0 * n2),
-                                  -(sig * kt * 3.0 * t3 - mu * 3.0 * n3), 0.0, s)
+                    x = _crossing(-(sig * kt * t1 - mu * n1), -2.0 * (sig * kt * t2 - mu * n2),
+                                  -3.0 * (sig * kt * t3 - mu * n3), 0.0, s)
                     if x < se:
                         se, which = x, 3
-                    if has_normal:
-                        x = _crossing(-n0, -n1, -n2, -n3, s)
-                        if x < se:
-                            se, which = x, 2
-                else:
+                if st != SEPARATED and has_normal:  # N falls through zero: separation
+                    x = _crossing(-n0, -n1, -n2, -n3, s)
+                    if x < se:
+                        se, which = x, 2
+                elif st == SEPARATED:
                     x = _crossing(n0, n1, n2, n3, s)
                     if x < se:
                         se, which = x, 4
