@@ -23,6 +23,10 @@ Discrete law at each time sample (return mapping)::
 The force coefficients are the DFT of these samples, except that the normal force of a sample
 next to a separated one is crossing-corrected (see _kernels._phi and docs/theory.md).
 
+With ``events=True`` (scene key ``[solver] aft = "events"``, one tangential direction) the law is
+integrated in continuous time instead: switches located between samples and the forces integrated
+over the pieces between them (compute_aft_events, _events.py).
+
 The march is sequential in time and vectorised over pairs.  The periodic steady
 state is marched from w = 0: plain periods, then Newton on the fixed point
 ``w_start = P(w_start; g)`` of the period map.  A pair that never slips keeps
