@@ -587,3 +587,168 @@ def compare_scene(scene: Scene, methods: str, defaults: RomOptions, *, out: Path
     atomic_write_text(out / "compare.md", md)
     plot_compare(results, output, out / "compare_frf.png", out / "compare_pareto.png", title=scene.name)
     return md
+
+
+NMA_OWNED = ("backbone.csv", "branch.npz", "summary.json", "backbone.png", "frf_synthesized.png")
+
+
+@dataclass
+class NmaSolution:
+    """A scene's nonlinear mode: the physical model, the backbone, the model-building seconds,
+    the ROM (None at full order) and, where it stopped early, why."""
+
+    structure: Structure
+    backbone: object  # analysis.nma.Backbone
+    build_s: float
+    rom: Reduction | None
+    incomplete: object = None  # analysis.nma.NmaIncomplete
+
+
+def nma_options(scene: Scene, *, mode: int | None = None):
+    """The scene's [nma] table (and [solver]'s harmonics and continuation settings) as NmaOptions;
+    ``mode`` overrides [nma] mode.  A scene without [nma] is refused, naming the table."""
+    from .analysis.nma import NmaOptions
+
+    if scene.nma is None:
+        raise SceneError(scene.path, "nma", None, "the scene has no [nma] table: give amplitude_range = [start, end] "
+                         "(m, at the output) and optionally mode and output (docs/scenes.md)")
+    s, n = scene.solver, scene.nma
+    cont = sweep_options(scene, stability="off").continuation
+    return NmaOptions(mode=mode if mode is not None else n.mode, amplitude_start=n.amplitude_range[0],
+                      amplitude_end=n.amplitude_range[1], output=n.output,
+                      harmonics=Harmonics(s.harmonics, s.samples), continuation=cont)
+
+
+def check_nma(scene: Scene, structure: Structure, options) -> None:
+    """Refuse, before any solve, an [nma] table that does not fit the model (its output, its mode)."""
+    if options.output is not None and options.output not in structure.outputs:
+        raise SceneError(scene.path, "nma.output", options.output,
+                         f"no such output (known: {', '.join(structure.outputs)})")
+    if not structure.outputs:
+        raise SceneError(scene.path, "output", None, "nonlinear modes need an output at which to measure the amplitude")
+    if options.mode > structure.num_dofs:
+        raise SceneError(scene.path, "nma.mode", options.mode, f"the model has only {structure.num_dofs} DOFs")
+
+
+def solve_nma(scene: Scene, *, method: str = "full", rom_options: RomOptions = RomOptions(), mode: int | None = None,
+              progress: bool = False, keep_incomplete: bool = True) -> NmaSolution:
+    """Build the model of a scene (and its ROM) and follow its nonlinear mode ([nma] table)."""
+    from .analysis.nma import NmaError, NmaIncomplete, compute_backbone
+
+    opts = nma_options(scene, mode=mode)
+    check_solvable(scene)
+    t0 = time.perf_counter()
+    structure = create_structure(scene)
+    check_nma(scene, structure, opts)
+    check_resources(scene, structure)
+    rom = None if method == "full" else build_rom(structure, method, rom_options)
+    t_build = time.perf_counter() - t0
+    bar, callback = None, None
+    if progress:
+        from tqdm import tqdm
+
+        lo, hi = np.log10(opts.amplitude_start), np.log10(opts.amplitude_end)
+        bar = tqdm(total=hi - lo, desc=f"{scene.name}: compiling kernels / first point", file=sys.stderr,
+                   bar_format="{desc}: {percentage:3.0f}%|{bar}| {n:.3g}/{total:.3g} decades [{elapsed}<{remaining}]"
+                              "{postfix}")
+        count = [0]
+
+        def callback(point):
+            count[0] += 1
+            if count[0] == 1:
+                bar.set_description_str(f"{scene.name} nma", refresh=False)
+            bar.set_postfix_str(f"points={count[0]} amplitude={10 ** point.lam:.4g} m", refresh=False)
+            done = min(max(point.lam - lo, 0.0), bar.total)
+            if done > bar.n:
+                bar.update(done - bar.n)
+            else:
+                bar.refresh()
+
+    incomplete = None
+    try:
+        bb = compute_backbone(structure if rom is None else rom, opts, callback=callback)
+    except NmaIncomplete as exc:
+        if not keep_incomplete:
+            raise
+        bb, incomplete = exc.backbone, exc
+    except NmaError as exc:
+        raise SceneError(scene.path, "nma", dataclasses.asdict(scene.nma), str(exc)) from None
+    finally:
+        if bar is not None:
+            bar.close()
+    return NmaSolution(structure, bb, t_build, rom, incomplete)
+
+
+def write_nma(solution: NmaSolution, scene: Scene, out: Path, *, method: str, rom_options: RomOptions | None = None,
+              frf_folder: Path | None = None, wall_start: float | None = None) -> dict:
+    """A nonlinear mode's folder: backbone.csv (amplitude, frequency in rad/s and Hz, damping ratio,
+    energies per cycle, each output's amplitude), branch.npz, summary.json, backbone.png and, where
+    the scene has a harmonic force on the mode, frf_synthesized.png (with the forced sweep of
+    ``frf_folder`` overlaid)."""
+    from .analysis.nma import synthesize_frf
+    from .plots import plot_backbone, plot_synthesized
+    from .results import _json
+
+    bb = solution.backbone
+    arr = bb.info["arrays"]
+    names = list(bb.outputs)
+    cols = [bb.amplitude, bb.omega, bb.omega / (2 * np.pi), bb.zeta, arr["energy_J"], arr["joint_energy_J"],
+            arr["harmonic_error"], arr["unknowns"]] + [bb.output_amplitude(n) for n in names]
+    header = ["amplitude_m", "omega_rad_s", "freq_Hz", "damping_ratio", "energy_per_cycle_J",
+              "joint_energy_per_cycle_J", "harmonic_error", "unknowns"] + [f"{n}_amp1_m" for n in names]
+    table = np.column_stack(cols)
+    if not np.all(np.isfinite(table)) or not np.all(np.isfinite(bb.U)):
+        raise OutputError("the backbone holds a non-finite value; nothing written")
+    out = Path(out)
+    for pattern in NMA_OWNED:  # an earlier run's files in this folder
+        p = out / pattern
+        if p.is_file() and (out / "summary.json").is_file():
+            p.unlink()
+    atomic_write(out / "backbone.csv", lambda p: np.savetxt(p, table, delimiter=",", header=",".join(header),
+                                                             comments="", fmt="%.12e"))
+
+    def npz(p):
+        with open(p, "wb") as fh:
+            np.savez_compressed(fh, amplitude=bb.amplitude, omega=bb.omega, xi=bb.xi, zeta=bb.zeta, U=bb.U,
+                                states=bb.states, H=bb.harmonics.H, N=bb.harmonics.N, output=np.array(bb.output),
+                                output_names=np.array(names, dtype=str), pair_names=np.array(bb.pair_names, dtype=str),
+                                layout=np.array("harmonic-major: U[j*n + dof], j=0 const, 2k-1 cos k, 2k sin k"),
+                                **{k: np.asarray(v) for k, v in arr.items()})
+
+    atomic_write(out / "branch.npz", npz)
+    synth = None
+    if np.any(np.abs(arr["modal_force_N"]) > 0):
+        synth = synthesize_frf(bb)
+    summary = {"scene": str(scene.path), "scene_data": scene.data, "kind": scene.kind, "method": method,
+               "analysis": "nma", "mode": bb.mode, "output": bb.output,
+               "damping_convention": "EPMC (Krack 2015): M u'' + (D - xi M) u' + K u + f_nl = 0, zeta = xi / (2 omega)",
+               "harmonics": bb.harmonics.H, "samples": bb.harmonics.N, "num_points": int(bb.num_points),
+               "num_unknowns": bb.info["num_unknowns"], "status": bb.info["status"],
+               **({"stop_reason": bb.info["stop_reason"]} if "stop_reason" in bb.info else {}),
+               "linear": {"omega_rad_s": bb.info["linear_omega_rad_s"],
+                          "freq_Hz": bb.info["linear_omega_rad_s"] / (2 * np.pi), "damping_ratio": bb.info["linear_zeta"]},
+               "amplitude_range_m": [float(bb.amplitude[0]), float(bb.amplitude[-1])],
+               "omega_range_rad_s": [float(bb.omega.min()), float(bb.omega.max())],
+               "damping_ratio_range": [float(bb.zeta.min()), float(bb.zeta.max())],
+               "harmonic_error_max": float(arr["harmonic_error"].max()),
+               "stability": bb.info["stability"], "continuation": bb.info["continuation"],
+               "model": {"num_dofs": solution.structure.num_dofs, "num_pairs": solution.structure.num_pairs},
+               "rom": {"method": method, "size_min": int(arr["rom_size"].min()), "size_max": int(arr["rom_size"].max()),
+                       **({"offline_s": solution.rom.offline_s, "modes": rom_options.modes, "tvd": rom_options.tvd}
+                          if solution.rom is not None and rom_options is not None else {})},
+               "wall_s": {"build": solution.build_s, "setup": bb.info["time_setup_s"],
+                          "continuation": bb.info["time_online_s"],
+                          "total": time.perf_counter() - (wall_start if wall_start is not None else time.perf_counter())},
+               "software": software()}
+    if synth is not None:
+        summary["synthesized_peak"] = {"amplitude_m": synth["peak_amplitude"], "omega_rad_s": synth["peak_omega"],
+                                       "freq_Hz": synth["peak_omega"] / (2 * np.pi)}
+    atomic_write(out / "summary.json", lambda p: Path(p).write_text(json.dumps(summary, indent=2, default=_json)))
+    title = f"{scene.name}: mode {bb.mode} ({method}, H={bb.harmonics.H})"
+    plot_backbone(bb, out / "backbone.png", title=title)
+    if synth is not None:
+        frf = None
+        if frf_folder is not None:
+            frf = load_branch(Path(frf_folder) / "branch.npz")
+        plot_synthesized(bb, synth, out / "frf_synthesized.png", frf=frf, output=bb.output, title=title)
+    return summary

@@ -1,4 +1,4 @@
-"""Command line: ``jointfem frf|compare|plot ...`` (also ``python -m jointfem``).
+"""Command line: ``jointfem frf|nma|modes|force|compare|plot|export ...`` (also ``python -m jointfem``).
 
 It parses arguments, calls the library layer (jointfem.app) and prints; nothing else.
 """
@@ -138,6 +138,43 @@ def cmd_force(args) -> int:
     return 0
 
 
+def cmd_nma(args) -> int:
+    from . import app, parallel
+
+    scene = app.override_harmonics(app.override(load_scene(args.scene), args.set), args.harmonics, args.samples)
+    out = Path(args.out) if args.out else Path("results") / f"{scene.name}_nma"
+    if args.mode is not None and args.mode < 1:
+        raise SceneError("--mode", "mode", args.mode, "must be >= 1 (1 = the lowest mode)")
+    if args.frf is not None and not (Path(args.frf) / "branch.npz").is_file():
+        raise SceneError("--frf", "frf", args.frf, "is not a result folder of `jointfem frf` (no branch.npz in it)")
+    app.nma_options(scene, mode=args.mode)  # a scene without [nma]: one line, before any work
+    t0 = time.perf_counter()
+    options = _rom_options(args)
+    if parallel.is_root():
+        app.check_output(out)
+    solution = app.solve_nma(scene, method=args.method, rom_options=options, mode=args.mode,
+                             progress=not args.quiet and parallel.is_root())
+    if not parallel.is_root():
+        return 0
+    summary = app.write_nma(solution, scene, out, method=args.method, rom_options=options,
+                            frf_folder=Path(args.frf) if args.frf else None, wall_start=t0)
+    if solution.incomplete is not None:
+        stop = solution.incomplete
+        print(f"jointfem: backbone incomplete: {stop}. The {summary['num_points']} converged points are in {out}/ "
+              f"(summary.json status \"incomplete\")", file=sys.stderr)
+        return 130 if stop.interrupted else 3
+    if not args.quiet:
+        lin = summary["linear"]
+        print(f"mode {summary['mode']}: stuck {lin['omega_rad_s']:.6g} rad/s ({lin['freq_Hz']:.5g} Hz), "
+              f"zeta {lin['damping_ratio']:.3g}")
+        lo, hi = summary["omega_range_rad_s"]
+        zl, zh = summary["damping_ratio_range"]
+        print(f"amplitude {summary['amplitude_range_m'][0]:.3g} to {summary['amplitude_range_m'][1]:.3g} m at "
+              f"{summary['output']}: omega {lo:.6g} to {hi:.6g} rad/s, zeta {zl:.3g} to {zh:.3g}; "
+              f"{summary['num_points']} points, {summary['wall_s']['total']:.2f} s -> {out}/")
+    return 0
+
+
 def cmd_export(args) -> int:
     from .export import export_point
 
@@ -234,6 +271,21 @@ def build_parser() -> argparse.ArgumentParser:
     fo.add_argument("--quiet", action="store_true")
     _set_arg(fo)
     fo.set_defaults(func=cmd_force)
+    nm = sub.add_parser("nma", help="a nonlinear mode: frequency and damping against amplitude (EPMC)")
+    nm.add_argument("scene", help="scene file (TOML) with an [nma] table")
+    nm.add_argument("--mode", type=int, help="the stuck linear mode to follow (overrides [nma] mode; 1 = lowest)")
+    nm.add_argument("--out", help="output folder (default results/<scene name>_nma)")
+    nm.add_argument("--frf", metavar="DIR", help="a `jointfem frf` result folder to overlay on the synthesised FRF")
+    nm.add_argument("--harmonics", type=int, help="number of harmonics H (overrides the scene)")
+    nm.add_argument("--samples", type=int, help="AFT time samples N >= 2H+1 (overrides the scene)")
+    nm.add_argument("--method", choices=[m for m in METHODS if m != "exact"], default="full",
+                    help="model reduction (default: full order; not exact: its condensation has no mass operator)")
+    nm.add_argument("--modes", type=int, default=defaults.ROM_MODES)
+    nm.add_argument("--tvd", type=int, default=defaults.ROM_TVD)
+    _tvd_kind_arg(nm)
+    nm.add_argument("--quiet", action="store_true")
+    _set_arg(nm)
+    nm.set_defaults(func=cmd_nma)
     ex = sub.add_parser("export", help="ParaView files (VTU) of a result folder at one branch point")
     ex.add_argument("folder", help="a folder written by `jointfem frf`")
     grp = ex.add_mutually_exclusive_group()

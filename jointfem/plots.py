@@ -145,3 +145,70 @@ def plot_compare(results, output: str, frf_path: Path, pareto_path: Path, *, tit
     ax.set_xlabel("online time [s]")
     ax.set_ylabel("largest curve error [% of peak]")
     return Path(frf_path), finish(fig, ax, pareto_path, title=title, legend_size=7)
+
+
+STATE_COLORS = (("stick", "#4c9a2a"), ("slip", "#f0a30a"), ("separated", "#c8102e"))
+
+
+def plot_backbone(bb, path: Path, *, title: str = "") -> Path:
+    """A nonlinear mode (analysis.nma.Backbone): frequency (Hz) and modal damping ratio against the
+    amplitude at its output (log axis), and below the share of pair-time per contact state."""
+    plt = pyplot()
+    has_contact = bb.states.shape[-1] > 0
+    n = 3 if has_contact else 2
+    fig, axes = plt.subplots(n, 1, figsize=(7.0, 2.6 * n + 0.6), sharex=True, squeeze=False)
+    a = bb.amplitude
+    ax = axes[0, 0]
+    ax.semilogx(a, bb.omega / (2 * np.pi), color="C0")
+    ax.set_ylabel("frequency [Hz]")
+    ax.set_title(title, fontsize=10)
+    ax = axes[1, 0]
+    ax.semilogx(a, bb.zeta, color="C3")
+    ax.set_ylabel("damping ratio [-]")
+    if has_contact:
+        from .contact.law import SEPARATED, SLIP, STICK
+
+        st = bb.states
+        ax = axes[2, 0]
+        for code, (name, color) in zip((STICK, SLIP, SEPARATED), STATE_COLORS):
+            ax.semilogx(a, (st == code).mean(axis=(1, 2)), color=color, label=name)
+        ax.set_ylim(-0.02, 1.02)
+        ax.set_ylabel("share of\npair-time")
+        ax.legend(fontsize=7, ncol=3, loc="center left")
+    for row in axes[:, 0]:
+        row.grid(True, which="both", alpha=0.3)
+    axes[-1, 0].set_xlabel(f"first-harmonic amplitude at {bb.output} [m]")
+    fig.tight_layout()
+    path = Path(path)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path
+
+
+def plot_synthesized(bb, synth: dict, path: Path, *, frf: dict | None = None, output: str | None = None,
+                     title: str = "") -> Path:
+    """The forced response synthesised from a backbone (analysis.nma.synthesize_frf), with the
+    backbone itself, and a forced sweep's branch (load_branch of its branch.npz) where given."""
+    plt = pyplot()
+    fig, ax = plt.subplots(figsize=(7.0, 4.4))
+    hz = 1.0 / (2 * np.pi)
+    # the backbone up to twice the synthesised peak: beyond it no forcing of this level reaches
+    top = 2.0 * synth["peak_amplitude"] if np.isfinite(synth["peak_amplitude"]) else np.inf
+    keep = bb.amplitude <= top
+    ax.plot(bb.omega[keep] * hz, bb.amplitude[keep], color="0.4", lw=1, label="backbone")
+    for k, side in enumerate(("below", "above")):
+        ax.plot(synth["omega"][k] * hz, synth["amplitude"], color="C1", label="synthesised (single mode)"
+                if k == 0 else None)
+    if frf is not None and output is not None:
+        names = [str(s) for s in frf["output_names"]]
+        if output in names:
+            j = names.index(output)
+            H, q = int(frf["H"]), int(frf["num_dofs"])
+            U = frf["U"].reshape(frf["U"].shape[0], 2 * H + 1, q)
+            row = (frf["output_recovery"][j] if "output_recovery" in frf else np.eye(q)[int(frf["output_dofs"][j])])
+            amp = np.hypot(U[:, 1] @ row, U[:, 2] @ row)
+            ax.plot(frf["omega"] * hz, amp, "k--", lw=1, label="forced sweep (HBM)")
+    ax.set_xlabel("frequency [Hz]")
+    ax.set_ylabel(f"first-harmonic amplitude at {bb.output} [m]")
+    ax.set_yscale("log")
+    return finish(fig, ax, path, title=title)

@@ -72,6 +72,16 @@ class SolverSpec:
 
 
 @dataclass(frozen=True)
+class NmaSpec:
+    """The [nma] table: which nonlinear mode ``jointfem nma`` follows, over which amplitudes, and
+    where the amplitude is measured (an output name; None: the model's first output)."""
+
+    amplitude_range: tuple[float, float]  # m, first-harmonic amplitude at ``output``
+    mode: int = 1  # the stuck linear mode, 1 = the lowest
+    output: str | None = None
+
+
+@dataclass(frozen=True)
 class Scene:
     path: Path
     kind: str
@@ -79,6 +89,7 @@ class Scene:
     solver: SolverSpec
     model: Any  # LumpedSpec | Beam2DSpec | ContinuumSpec
     data: dict  # the parsed TOML, for the record
+    nma: NmaSpec | None = None  # the [nma] table, where the scene has one
 
 
 _REQUIRED = object()
@@ -223,6 +234,21 @@ def _solver(t: _Table) -> SolverSpec:
         t.fail("kink_tol", spec.kink_tol, "must be <= 1e-3 (a residual of 0.1 % of the force)")
     if not spec.ds_min <= spec.ds0 <= spec.ds_max:
         t.fail("ds0", spec.ds0, f"must lie in [ds_min, ds_max] = [{spec.ds_min}, {spec.ds_max}]")
+    t.done()
+    return spec
+
+
+def _nma(t: _Table) -> NmaSpec:
+    rng = t.raw("amplitude_range")
+    if (not isinstance(rng, list) or len(rng) != 2
+            or not all(isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in rng)):
+        t.fail("amplitude_range", rng, "must be [start, end] in m (first-harmonic amplitude at the output)")
+    lo, hi = float(rng[0]), float(rng[1])
+    if not 0 < lo < hi:
+        t.fail("amplitude_range", rng, "must be 0 < start < end, m")
+    if not (1e-30 <= lo and hi <= 1e30):
+        t.fail("amplitude_range", rng, "must lie between 1e-30 and 1e30 m")
+    spec = NmaSpec((lo, hi), mode=t.integer("mode", 1, ge=1), output=t.string("output", None))
     t.done()
     return spec
 
@@ -601,10 +627,11 @@ def parse_scene(data: dict, path="<scene>") -> Scene:
         model = _matrices(top, path)
     else:
         model = _continuum(top, kind, path)
+    nma = _nma(top.table("nma")) if top.has("nma") else None
     top.done()
     if solver.aft == "events":
         _check_events(path, kind, model)
-    return Scene(Path(str(path)), kind, name, solver, model, data)
+    return Scene(Path(str(path)), kind, name, solver, model, data, nma)
 
 
 def _check_events(path, kind: str, model) -> None:

@@ -1,0 +1,464 @@
+"""Nonlinear modes: frequency and damping against amplitude by the extended periodic motion
+concept (EPMC; Krack 2015, J. Sound Vib. 339, "Nonlinear modal analysis of nonconservative
+systems: extension of the periodic motion concept").
+
+The free, unforced structure gets a self-excitation term that makes its damped motion periodic:
+
+    M u'' + (D - xi M) u' + K u + f_nl(u, u') = f_static,
+
+xi (1/s) being an unknown that cancels the dissipation of a period exactly.  The modal damping
+ratio is zeta = xi / (2 omega) (Krack's D), the convention of NLvib and tmdsimpy.  In HBM, with
+the harmonic force of the scene removed and the static one kept, the residual of any problem of
+the protocol (hbm.problem) is
+
+    R_e(x, omega, xi; a) = (R(U_s + a x, omega) + F_h) / a - xi omega (nabla (x) M) x,
+
+U_s the static state (the preload alone), a the amplitude (the parameter, continued in log10 a)
+and x the motion per unit amplitude, normalised so that the first harmonic of the ``output``
+is cos(tau): c_1 = 1, s_1 = 0 there (the amplitude is measured where the user says, in m, and the
+phase of the autonomous motion is fixed).  F_h = -R(0) on the harmonic blocks (the contact forces
+vanish at zero gaps: R(0) = -F), and nabla (x) M = (nabla (x) I) Delta2, with Delta2 = I (x) M
+the problem's Hill operator: any problem with Hill operators has nonlinear modes (full order,
+the Galerkin ROMs, the penalty ROM with its active set; not the exact condensation, whose
+dynamic compliance would have to include the xi M term).
+
+Per point: omega (rad/s), zeta, the energy dissipated per cycle (W = xi pi omega sum_k k^2
+(c_k^T M c_k + s_k^T M s_k), the self-excitation's input, equal to the dissipation of a period),
+the joints' share of it (the contact pairs' own hysteresis energy), the contact states, and the
+harmonic truncation estimate (analysis.convergence).
+"""
+from __future__ import annotations
+
+import logging
+import math
+import time
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+import scipy.sparse as sp
+
+from ..continuation.arclength import (Adaptive, ContinuationError, ContinuationOptions, ConvergenceError,
+                                     continue_branch, solve_adaptive)
+from ..harmonics import Harmonics
+from ..hbm.problem import Evaluation, Problem, Scales, newton_system
+from ..linalg import eigen
+from ..models.structure import Structure
+from ..rom.common import Reduction
+from .convergence import top_harmonic_share
+from .frf import create_problem
+
+log = logging.getLogger(__name__)
+LN10 = math.log(10.0)
+
+
+class NmaError(ValueError):
+    """Nonlinear modes cannot be computed for this problem or these options (names the reason)."""
+
+
+class ModalProblem(Problem):
+    """The EPMC of an inner (forced) problem: coefficients x (the inner's, per unit amplitude),
+    then omega (rad/s) and xi (1/s); lam = log10 of the amplitude at ``output`` (m)."""
+
+    def __init__(self, inner: Problem, mode: int, output: str):
+        if inner.hill_operators(1.0) is None:
+            raise NmaError("nonlinear modes need the mass operator of the problem (Hill's Delta2), which this "
+                           "method does not have (the exact condensation): use full order or a ROM")
+        if output not in inner.layout.outputs:
+            raise NmaError(f"output {output!r} is not one of the model's outputs {sorted(inner.layout.outputs)}")
+        self.inner, self.mode, self.output = inner, int(mode), output
+        self.harmonics, self.layout, self.tol_floor = inner.harmonics, inner.layout, inner.tol_floor
+        self.adaptation = None if inner.adaptation is None else _Modal(self)
+        self.nc = inner.num_coefficients
+        q = self.layout.num_coords
+        o = inner.layout.outputs[output]
+        self._out = np.zeros(q)
+        if np.ndim(o):
+            self._out[:] = o
+        else:
+            self._out[int(o)] = 1.0
+        self._ops = None  # (key, F_h, NM, E1) per set of unknowns
+        self.static = np.zeros(self.nc)
+        self._static_state()
+        self.omega0, self.xi0, self.shape0, self.r_scale = self._linear_mode()
+
+    # --- what the inner problem gives, over its unknowns now ------------------------------------
+    def _inner_unknowns(self) -> np.ndarray:
+        u = self.inner.unknowns()
+        return np.arange(self.nc) if u is None else u
+
+    def _operators(self):
+        """(unknowns, F_h, nabla (x) M, ones on the harmonic blocks) for the inner unknowns now."""
+        u = self._inner_unknowns()
+        key = u.tobytes()
+        if self._ops is None or self._ops[0] != key:
+            nh = self.harmonics.num_hc
+            qn = u.size // nh
+            R0 = self.inner.evaluate(np.zeros(self.nc), 1.0, jacobian=False).R
+            Fh = -R0.copy()
+            Fh[:qn] = 0.0  # the static force stays
+            d2 = self.inner.hill_operators(1.0)[1]
+            NM = sp.csr_matrix(sp.kron(sp.csr_matrix(self.harmonics.derivative_matrix()), sp.identity(qn)) @ d2)
+            self._ops = (key, u, Fh, NM)
+        return self._ops[1:]
+
+    def _static_state(self) -> None:
+        """U_s: the static state under the preload alone (no motion), by Newton on the zeroth
+        harmonic of the inner problem."""
+        u, Fh, _ = self._operators()
+        qn = u.size // self.harmonics.num_hc
+        U = np.zeros(self.nc)
+        ref = max(float(np.abs(Fh).max(initial=0.0)), float(np.abs(self.inner.evaluate(U, 1.0, jacobian=False).R).max(
+            initial=0.0)), 1e-300)
+        for _ in range(30):
+            ev = self.inner.evaluate(U, 1.0, jacobian=True)
+            r = (ev.R + Fh)[:qn]
+            if np.abs(r).max(initial=0.0) <= 1e-12 * ref:
+                break
+            J = ev.J[:qn, :qn]
+            J = J.toarray() if sp.issparse(J) else np.asarray(J)
+            U[u[:qn]] -= np.linalg.solve(J, r)
+        else:
+            raise NmaError(f"the static state under the preload did not converge: max|R0| = {np.abs(r).max():.3e} N")
+        self.static = U
+
+    def _linear_mode(self):
+        """The stuck linear mode ``mode`` at the static state: (omega, xi, x per unit amplitude at
+        the output over every coefficient, residual scale)."""
+        u, _, _ = self._operators()
+        nh = self.harmonics.num_hc
+        qn = u.size // nh
+        ev = self.inner.evaluate(self.static, 0.0, jacobian=True)  # J(U_s, omega = 0) = I (x) K_lin
+        d1, d2 = self.inner.hill_operators(0.0)  # at omega = 0: I (x) D, I (x) M
+        blk = slice(qn, 2 * qn)  # the cosine of the first harmonic
+        K, M, D = (A[blk, blk] for A in (ev.J, d2, d1))
+        try:
+            w2, Phi = eigen(K, M, self.mode, what="nma: the stuck linear structure")
+        except Exception as exc:
+            raise NmaError(f"mode {self.mode}: {exc}") from None
+        phi = Phi[:, self.mode - 1]
+        coords = u[:qn]
+        at_out = float(self._out[coords] @ phi)
+        if abs(at_out) < 1e-9 * np.abs(phi).max() * np.abs(self._out).max():
+            raise NmaError(f"output {self.output!r} does not move in mode {self.mode} (a node of the mode): "
+                           f"measure the amplitude at another output ([nma] output)")
+        xi = float(phi @ (D @ phi))  # mass-normalised phi: the linear mode's 2 zeta omega
+        x = np.zeros(self.nc)
+        x[u[blk]] = phi / at_out
+        r = float(np.sqrt(max(w2[self.mode - 1], 0.0)) ** 2 * np.abs(M @ (phi / at_out)).max())
+        return float(np.sqrt(w2[self.mode - 1])), xi, x, max(r, 1e-300)
+
+    # --- the protocol ------------------------------------------------------------------------------
+    @property
+    def num_coefficients(self) -> int:
+        return self.nc + 2
+
+    def unknowns(self):
+        u = self.inner.unknowns()
+        return None if u is None else np.concatenate([u, [self.nc, self.nc + 1]])
+
+    def physical(self, x: np.ndarray, lam: float) -> np.ndarray:
+        """The inner problem's coefficients U = U_s + a x (m) of a point."""
+        return self.static + 10.0 ** lam * x[:self.nc]
+
+    def evaluate(self, x, lam, *, jacobian=True) -> Evaluation:
+        a = 10.0 ** lam
+        omega, xi = float(x[self.nc]), float(x[self.nc + 1])
+        u, Fh, NM = self._operators()
+        ev = self.inner.evaluate(self.physical(x, lam), omega, jacobian=jacobian)
+        xu = x[u]
+        nmx = NM @ xu
+        R_dyn = (ev.R + Fh) / a - xi * omega * nmx
+        h, q = self.harmonics, self.layout.num_coords
+        o = self._out
+        c1, s1 = x[h.cos(1, q)], x[h.sin(1, q)]
+        R = np.concatenate([R_dyn, self.r_scale * np.array([o @ c1 - 1.0, o @ s1])])
+        if not jacobian:
+            return Evaluation(R, None, None, ev.contact)
+        # the normalisation rows over the inner unknowns: o on the first harmonic's blocks
+        row_c, row_s = np.zeros(self.nc), np.zeros(self.nc)
+        row_c[h.cos(1, q)], row_s[h.sin(1, q)] = o, o
+        rows = self.r_scale * np.vstack([row_c[u], row_s[u]])
+        col_w = ev.dR_dlam / a - xi * nmx
+        col_xi = -omega * nmx
+        dR = np.concatenate([LN10 * (ev.J @ xu - R_dyn - xi * omega * nmx), [0.0, 0.0]])
+        if sp.issparse(ev.J):
+            Jd = (ev.J - (xi * omega) * NM).tocsr()
+            J = sp.bmat([[Jd, sp.csr_matrix(np.column_stack([col_w, col_xi]))],
+                         [sp.csr_matrix(rows), None]], format="csr")
+        else:
+            Jd = np.asarray(ev.J) - (xi * omega) * NM.toarray()
+            J = np.block([[Jd, col_w[:, None], col_xi[:, None]], [rows, np.zeros((2, 2))]])
+        return Evaluation(R, J, dR, ev.contact)
+
+    def initial_guess(self, lam):
+        x = np.zeros(self.num_coefficients)
+        x[:self.nc] = self.shape0
+        x[self.nc], x[self.nc + 1] = self.omega0, self.xi0
+        return x
+
+    def scales(self, lam_start, lam_end) -> Scales:
+        """The linear mode's coordinates (at least 1e-3 of its largest; coordinates that it does
+        not move, the largest), omega0 for omega and for xi."""
+        q = self.layout.num_coords
+        per = np.abs(self.shape0[self.harmonics.cos(1, q)])
+        top = per.max()
+        per = np.where(per > 0, np.maximum(per, 1e-3 * top), top)
+        x = Scales.from_coordinates(per, self.harmonics, self.r_scale).x
+        return Scales(np.concatenate([x, [self.omega0, self.omega0]]), self.r_scale)
+
+    def record(self, x, lam, evaluation):
+        return self.inner.record(self.physical(x, lam), float(x[self.nc]), evaluation)
+
+    def branch_info(self) -> dict:
+        return self.inner.branch_info()
+
+    # per point quantities
+    def energy_per_cycle(self, x: np.ndarray, lam: float) -> float:
+        """The energy the self-excitation puts in per period, which the structure dissipates, J."""
+        u, _, NM = self._operators()
+        xu = x[u]
+        nh = self.harmonics.num_hc
+        d2 = self.inner.hill_operators(1.0)[1]
+        y = sp.kron(sp.csr_matrix(self.harmonics.derivative_matrix()), sp.identity(u.size // nh)) @ xu
+        return float(x[self.nc + 1] * math.pi * x[self.nc] * 10.0 ** (2 * lam) * (y @ (d2 @ y)))
+
+    def modal_terms(self, x: np.ndarray) -> tuple[float, complex]:
+        """(modal mass psi^H M psi, kg; modal force psi^H F, N) of the first harmonic psi = c_1 - i s_1
+        per unit output amplitude, F = fc - i fs the scene's harmonic force (single nonlinear mode
+        theory, ``synthesize_frf``)."""
+        u, Fh, _ = self._operators()
+        qn = u.size // self.harmonics.num_hc
+        d2 = self.inner.hill_operators(1.0)[1]
+        xu = x[u]
+        c, s = xu[qn:2 * qn], xu[2 * qn:3 * qn]
+        M = d2[qn:2 * qn, qn:2 * qn]
+        m = float(c @ (M @ c) + s @ (M @ s))
+        f = complex((c + 1j * s) @ (Fh[qn:2 * qn] - 1j * Fh[2 * qn:3 * qn]))
+        return m, f
+
+
+class _Modal(Adaptive):
+    """The inner problem's hooks on the physical coefficients and omega of a point."""
+
+    def __init__(self, outer: ModalProblem):
+        self.outer = outer
+        self.inner = outer.inner.adaptation
+        self.max_redo = self.inner.max_redo
+
+    def unknowns(self):
+        return self.outer.unknowns()
+
+    def state_of(self, x):
+        return self.inner.state_of(x[:self.outer.nc])
+
+    def before_step(self, x, lam) -> bool:
+        return self.inner.before_step(self.outer.physical(x, lam), float(x[self.outer.nc]))
+
+    def after_converge(self, x, lam) -> bool:
+        return self.inner.after_converge(self.outer.physical(x, lam), float(x[self.outer.nc]))
+
+    def restore(self, state) -> None:
+        self.inner.restore(state)
+
+
+@dataclass(frozen=True)
+class NmaOptions:
+    mode: int = 1  # the stuck linear mode continued (1 = the lowest)
+    amplitude_start: float = 1e-6  # m, first-harmonic amplitude at ``output``
+    amplitude_end: float = 1e-3
+    output: str | None = None  # where the amplitude is measured (None: the model's first output)
+    harmonics: Harmonics = Harmonics(5, 256)
+    continuation: ContinuationOptions = field(default_factory=ContinuationOptions)
+    # amplitudes (m) at which the mode is also solved exactly, by Newton at that amplitude from the
+    # nearest branch point (Backbone.info["at"]): to compare backbones at the same amplitudes
+    at: tuple[float, ...] = ()
+
+
+@dataclass
+class Backbone:
+    """A nonlinear mode along its amplitude.
+
+    amplitude: (points,) first-harmonic amplitude at ``output``, m.  omega: rad/s.  xi: the
+    self-excitation, 1/s; zeta = xi / (2 omega).  U: (points, coefficients) the physical harmonic
+    coefficients (layout of ``outputs``).  states: (points, N, pairs) int8.  info["arrays"]: the
+    per-point data by name (energy_J, joint_energy_J, modal_mass_kg, modal_force_N, ...).
+    """
+
+    output: str
+    mode: int
+    amplitude: np.ndarray
+    omega: np.ndarray
+    xi: np.ndarray
+    U: np.ndarray
+    states: np.ndarray
+    harmonics: Harmonics
+    outputs: dict
+    pair_names: tuple = ()
+    info: dict = field(default_factory=dict)
+
+    @property
+    def zeta(self) -> np.ndarray:
+        """Modal damping ratio (Krack's D = xi / (2 omega))."""
+        return self.xi / (2.0 * self.omega)
+
+    @property
+    def num_points(self) -> int:
+        return self.omega.size
+
+    def output_amplitude(self, name: str) -> np.ndarray:
+        """First-harmonic amplitude of an output at every point, m."""
+        q = self.U.shape[1] // self.harmonics.num_hc
+        out = self.outputs[name]
+        c, s = self.U[:, self.harmonics.cos(1, q)], self.U[:, self.harmonics.sin(1, q)]
+        if np.ndim(out):
+            return np.hypot(c @ out, s @ out)
+        return np.hypot(c[:, out], s[:, out])
+
+
+class NmaIncomplete(ContinuationError):
+    """A backbone that stopped before amplitude_end: ``backbone`` holds its converged points."""
+
+    def __init__(self, message: str, *, backbone: Backbone, points=None, interrupted: bool = False):
+        super().__init__(message, points=points, interrupted=interrupted)
+        self.backbone = backbone
+
+
+def compute_backbone(model: Structure | Reduction, options: NmaOptions, *, callback=None) -> Backbone:
+    """The nonlinear mode ``options.mode`` of a model from amplitude_start (the stuck linear mode
+    there, refined by Newton) to amplitude_end, by arclength continuation in log10 of the amplitude."""
+    a0, a1 = options.amplitude_start, options.amplitude_end
+    if not 0 < a0 < a1:
+        raise NmaError(f"amplitudes must be 0 < start < end, got {a0}, {a1}")
+    t0 = time.perf_counter()
+    inner = create_problem(model, options.harmonics)
+    output = options.output or next(iter(inner.layout.outputs), None)
+    if output is None:
+        raise NmaError("the model has no output at which to measure the amplitude")
+    problem = ModalProblem(inner, options.mode, output)
+    lam0, lam1 = math.log10(a0), math.log10(a1)
+    sc = problem.scales(lam0, lam1)
+    cont = options.continuation
+    if cont.lam_bounds is None:
+        cont = replace(cont, lam_bounds=(lam0 - (lam1 - lam0), lam1 + (lam1 - lam0)))
+    if cont.newton.tol < problem.tol_floor:
+        cont = replace(cont, newton=replace(cont.newton, tol=problem.tol_floor))
+    h = options.harmonics
+    t_setup = time.perf_counter() - t0
+
+    def record(x, lam):
+        ev = problem.evaluate(x, lam, jacobian=False)
+        rec = replace(problem.record(x, lam, ev), harmonic_error=top_harmonic_share(ev.contact, h),
+                      unknowns=problem.num_unknowns)
+        m, f = problem.modal_terms(x)
+        return rec, problem.energy_per_cycle(x, lam), m, f
+
+    steps = {}
+    stopped = None
+    t1 = time.perf_counter()
+    try:
+        points = continue_branch(newton_system(problem), problem.initial_guess(lam0), lam0, lam1, x_scale=sc.x,
+                                 lam_scale=lam1 - lam0, r_scale=sc.r, options=cont, callback=callback,
+                                 extra=record, adapt=problem.adaptation, stats=steps)
+    except ContinuationError as exc:
+        if len(exc.points) < 2:
+            raise
+        points, stopped = exc.points, exc
+    lam = np.array([p.lam for p in points])
+    X = np.array([p.x for p in points])
+    recs = [p.extra[0] for p in points]
+    at = _solve_at(problem, points, options.at, sc, cont) if stopped is None or not stopped.interrupted else {}
+    nc = problem.nc
+    U = problem.static[None, :] + (10.0 ** lam)[:, None] * X[:, :nc]
+    info = {"time_setup_s": t_setup, "time_online_s": time.perf_counter() - t1, "continuation": steps,
+            "num_unknowns": int(max(r.unknowns for r in recs)), "newton_tol": cont.newton.tol,
+            "linear_omega_rad_s": problem.omega0, "linear_zeta": problem.xi0 / (2 * problem.omega0),
+            "status": "complete" if stopped is None else "incomplete", "at": at,
+            # the EPMC is a model of the damped free decay, not a motion of the structure: no stability
+            "stability": "not applicable (nonlinear modes: the EPMC's self-excited motion is not a response)",
+            "arrays": {"residual": np.array([p.residual for p in points]),
+                       "iterations": np.array([p.iterations for p in points]),
+                       "energy_J": np.array([p.extra[1] for p in points]),
+                       "joint_energy_J": np.array([r.pair_summary[:, 0].sum() for r in recs]),
+                       "pair_energy_J": np.array([r.pair_summary[:, 0] for r in recs]),
+                       "modal_mass_kg": np.array([p.extra[2] for p in points]),
+                       "modal_force_N": np.array([p.extra[3] for p in points]),
+                       "harmonic_error": np.array([r.harmonic_error for r in recs]),
+                       "rom_size": np.array([r.size for r in recs]),
+                       "unknowns": np.array([r.unknowns for r in recs])}}
+    if stopped is not None:
+        info["stop_reason"] = str(stopped).replace("lam = ", "log10(amplitude [m]) = ").replace("lam_end",
+                                                                                               "amplitude_end")
+    info.update(problem.branch_info())
+    bb = Backbone(output, options.mode, 10.0 ** lam, X[:, nc], X[:, nc + 1], U,
+                  np.array([r.states for r in recs], dtype=np.int8), h, dict(problem.layout.outputs),
+                  problem.layout.pair_names, info)
+    if stopped is not None:
+        raise NmaIncomplete(info["stop_reason"], backbone=bb, points=points, interrupted=stopped.interrupted)
+    return bb
+
+
+def _solve_at(problem: ModalProblem, points, amplitudes, sc: Scales, cont: ContinuationOptions) -> dict:
+    """{amplitude: {"omega_rad_s", "zeta", "iterations"}} solved at each of ``amplitudes`` inside the
+    branch, by Newton at that amplitude from the nearest point (in its active set)."""
+    out = {}
+    lam = np.array([p.lam for p in points])
+    adapt = problem.adaptation
+    for a in amplitudes:
+        la = math.log10(a)
+        if not lam.min() <= la <= lam.max():
+            continue
+        x0 = points[int(np.argmin(np.abs(lam - la)))].x
+        if adapt is not None:
+            adapt.restore(adapt.state_of(x0))
+        try:
+            x, it = solve_adaptive(newton_system(problem), x0, la, adapt=adapt, x_scale=sc.x, r_scale=sc.r,
+                                   options=cont.newton)
+        except (ConvergenceError, ContinuationError) as exc:
+            log.warning("nma: the mode at amplitude %.6g m did not converge: %s", a, exc)
+            continue
+        w, xi = float(x[problem.nc]), float(x[problem.nc + 1])
+        out[float(a)] = {"omega_rad_s": w, "zeta": xi / (2.0 * w), "iterations": int(it)}
+    return out
+
+
+def synthesize_frf(backbone: Backbone, scale: float = 1.0) -> dict:
+    """The forced response near the mode from its backbone, by single nonlinear mode theory
+    (Szemplinska-Stupnicka; Krack 2015, Eq. 22): the motion is the mode at amplitude a, forced by
+    its modal force scale * psi^H F,
+
+        a^2 m^2 [(omega^2 - Omega^2)^2 + (2 zeta omega Omega)^2] = |scale psi^H F|^2,
+
+    solved for the excitation frequency Omega at each backbone point: two solutions (below and
+    above resonance) where the amplitude is reachable.  Returns {"omega": (2, points) rad/s with
+    NaN where unreachable, "amplitude": (points,) m at the backbone's output, "peak_amplitude",
+    "peak_omega"}: the peak where the two branches meet (interpolated in the backbone's points)."""
+    arr = backbone.info["arrays"]
+    a, w, z = backbone.amplitude, backbone.omega, backbone.zeta
+    m, f = arr["modal_mass_kg"], np.abs(arr["modal_force_N"]) * scale
+    if not np.any(f > 0):
+        raise NmaError("the scene has no harmonic force on this mode: no forced response to synthesise")
+    rhs = (f / (a * m)) ** 2
+    base = w ** 2 * (1.0 - 2.0 * z ** 2)
+    disc = w ** 4 * (1.0 - 2.0 * z ** 2) ** 2 - w ** 4 + rhs
+    ok = disc >= 0
+    sq = np.sqrt(np.where(ok, disc, 0.0))
+    lo, hi = base - sq, base + sq
+    om = np.full((2, a.size), np.nan)
+    om[0, ok & (lo > 0)] = np.sqrt(lo[ok & (lo > 0)])
+    om[1, ok & (hi > 0)] = np.sqrt(hi[ok & (hi > 0)])
+    # the peak: where disc = 0 (the two branches meet), between the last reachable point and the next
+    g = disc / w ** 4
+    idx = np.flatnonzero(g[:-1] * g[1:] <= 0)
+    if idx.size:
+        i = int(idx[0])
+        t = g[i] / (g[i] - g[i + 1]) if g[i] != g[i + 1] else 0.0
+        la = np.log(a[i]) + t * (np.log(a[i + 1]) - np.log(a[i]))
+        pk_a = float(np.exp(la))
+        pk_w = float(np.sqrt(np.interp(t, [0, 1], [base[i], base[i + 1]])))
+    else:
+        pk_a, pk_w = float("nan"), float("nan")
+    return {"omega": om, "amplitude": a, "peak_amplitude": pk_a, "peak_omega": pk_w}
+
+
+__all__ = ["ModalProblem", "NmaOptions", "Backbone", "NmaError", "NmaIncomplete", "compute_backbone",
+           "synthesize_frf"]
