@@ -2,7 +2,7 @@
 PY := .venv/bin/python
 MPIRUN := mpirun $(if $(filter 0,$(shell id -u)),--allow-run-as-root) --oversubscribe
 
-.PHONY: setup demo test test-fast bench bench-corners bench-friction paper validate clean
+.PHONY: setup demo test test-fast bench bench-corners bench-friction bench-nma paper validate clean
 
 setup:
 	@bash tools/setup.sh
@@ -25,6 +25,11 @@ bench-corners: setup
 # condensation, and the energy per cycle against the force (about 15 min on 2 cores)
 bench-friction: setup
 	$(PY) benchmarks/friction.py --out docs/benchmarks_friction.md
+
+# issue 15's nonlinear modes: SDOF closed form and harmonics, backbone against forced sweeps, the
+# beam and the 3D lap joint against full order (about 30 min on 2 cores)
+bench-nma: setup
+	$(PY) benchmarks/nma.py --out docs/benchmarks_nma.md
 
 paper: setup
 	$(PY) demos/paper_figures.py --out docs

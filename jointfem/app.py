@@ -615,7 +615,7 @@ def nma_options(scene: Scene, *, mode: int | None = None):
     s, n = scene.solver, scene.nma
     cont = sweep_options(scene, stability="off").continuation
     return NmaOptions(mode=mode if mode is not None else n.mode, amplitude_start=n.amplitude_range[0],
-                      amplitude_end=n.amplitude_range[1], output=n.output,
+                      amplitude_end=n.amplitude_range[1], output=n.output, excitation=n.self_excitation,
                       harmonics=Harmonics(s.harmonics, s.samples), continuation=cont)
 
 
@@ -722,6 +722,7 @@ def write_nma(solution: NmaSolution, scene: Scene, out: Path, *, method: str, ro
     summary = {"scene": str(scene.path), "scene_data": scene.data, "kind": scene.kind, "method": method,
                "analysis": "nma", "mode": bb.mode, "output": bb.output,
                "damping_convention": "EPMC (Krack 2015): M u'' + (D - xi M) u' + K u + f_nl = 0, zeta = xi / (2 omega)",
+               "self_excitation": bb.info["excitation"],
                "harmonics": bb.harmonics.H, "samples": bb.harmonics.N, "num_points": int(bb.num_points),
                "num_unknowns": bb.info["num_unknowns"], "status": bb.info["status"],
                **({"stop_reason": bb.info["stop_reason"]} if "stop_reason" in bb.info else {}),
@@ -731,6 +732,7 @@ def write_nma(solution: NmaSolution, scene: Scene, out: Path, *, method: str, ro
                "omega_range_rad_s": [float(bb.omega.min()), float(bb.omega.max())],
                "damping_ratio_range": [float(bb.zeta.min()), float(bb.zeta.max())],
                "harmonic_error_max": float(arr["harmonic_error"].max()),
+               **({"warnings": bb.info["warnings"]} if "warnings" in bb.info else {}),
                "stability": bb.info["stability"], "continuation": bb.info["continuation"],
                "model": {"num_dofs": solution.structure.num_dofs, "num_pairs": solution.structure.num_pairs},
                "rom": {"method": method, "size_min": int(arr["rom_size"].min()), "size_max": int(arr["rom_size"].max()),

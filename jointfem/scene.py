@@ -79,6 +79,8 @@ class NmaSpec:
     amplitude_range: tuple[float, float]  # m, first-harmonic amplitude at ``output``
     mode: int = 1  # the stuck linear mode, 1 = the lowest
     output: str | None = None
+    # -xi M u' on every harmonic ("all", Krack 2015) or on the fundamental only (analysis.nma)
+    self_excitation: str = "all"
 
 
 @dataclass(frozen=True)
@@ -248,7 +250,8 @@ def _nma(t: _Table) -> NmaSpec:
         t.fail("amplitude_range", rng, "must be 0 < start < end, m")
     if not (1e-30 <= lo and hi <= 1e30):
         t.fail("amplitude_range", rng, "must lie between 1e-30 and 1e30 m")
-    spec = NmaSpec((lo, hi), mode=t.integer("mode", 1, ge=1), output=t.string("output", None))
+    spec = NmaSpec((lo, hi), mode=t.integer("mode", 1, ge=1), output=t.string("output", None),
+                   self_excitation=t.string("self_excitation", "all", choices=("all", "fundamental")))
     t.done()
     return spec
 

@@ -59,13 +59,17 @@ class ModalProblem(Problem):
     """The EPMC of an inner (forced) problem: coefficients x (the inner's, per unit amplitude),
     then omega (rad/s) and xi (1/s); lam = log10 of the amplitude at ``output`` (m)."""
 
-    def __init__(self, inner: Problem, mode: int, output: str):
+    EXCITATIONS = ("all", "fundamental")
+
+    def __init__(self, inner: Problem, mode: int, output: str, *, excitation: str = "all"):
         if inner.hill_operators(1.0) is None:
             raise NmaError("nonlinear modes need the mass operator of the problem (Hill's Delta2), which this "
                            "method does not have (the exact condensation): use full order or a ROM")
         if output not in inner.layout.outputs:
             raise NmaError(f"output {output!r} is not one of the model's outputs {sorted(inner.layout.outputs)}")
-        self.inner, self.mode, self.output = inner, int(mode), output
+        if excitation not in self.EXCITATIONS:
+            raise NmaError(f"self-excitation {excitation!r}: choose one of {', '.join(self.EXCITATIONS)}")
+        self.inner, self.mode, self.output, self.excitation = inner, int(mode), output, excitation
         self.harmonics, self.layout, self.tol_floor = inner.harmonics, inner.layout, inner.tol_floor
         self.adaptation = None if inner.adaptation is None else _Modal(self)
         self.nc = inner.num_coefficients
@@ -87,7 +91,8 @@ class ModalProblem(Problem):
         return np.arange(self.nc) if u is None else u
 
     def _operators(self):
-        """(unknowns, F_h, nabla (x) M, ones on the harmonic blocks) for the inner unknowns now."""
+        """(unknowns, F_h, nabla (x) M, nabla (x) I) for the inner unknowns now; with
+        ``excitation = "fundamental"``, nabla of the first harmonic only."""
         u = self._inner_unknowns()
         key = u.tobytes()
         if self._ops is None or self._ops[0] != key:
@@ -97,9 +102,13 @@ class ModalProblem(Problem):
             Fh = -R0.copy()
             Fh[:qn] = 0.0  # the static force stays
             d2 = self.inner.hill_operators(1.0)[1]
-            NM = sp.csr_matrix(sp.kron(sp.csr_matrix(self.harmonics.derivative_matrix()), sp.identity(qn)) @ d2)
-            self._ops = (key, u, Fh, NM)
-        return self._ops[1:]
+            nab = self.harmonics.derivative_matrix()
+            if self.excitation == "fundamental":
+                first = self.harmonics.orders == 1
+                nab = nab * np.outer(first, first)
+            NI = sp.csr_matrix(sp.kron(sp.csr_matrix(nab), sp.identity(qn)))
+            self._ops = (key, u, Fh, sp.csr_matrix(NI @ d2), NI, d2)
+        return self._ops[1:4]
 
     def _static_state(self) -> None:
         """U_s: the static state under the preload alone (no motion), by Newton on the zeroth
@@ -215,11 +224,9 @@ class ModalProblem(Problem):
     # per point quantities
     def energy_per_cycle(self, x: np.ndarray, lam: float) -> float:
         """The energy the self-excitation puts in per period, which the structure dissipates, J."""
-        u, _, NM = self._operators()
-        xu = x[u]
-        nh = self.harmonics.num_hc
-        d2 = self.inner.hill_operators(1.0)[1]
-        y = sp.kron(sp.csr_matrix(self.harmonics.derivative_matrix()), sp.identity(u.size // nh)) @ xu
+        u = self._operators()[0]
+        NI, d2 = self._ops[4:]
+        y = NI @ x[u]
         return float(x[self.nc + 1] * math.pi * x[self.nc] * 10.0 ** (2 * lam) * (y @ (d2 @ y)))
 
     def modal_terms(self, x: np.ndarray) -> tuple[float, complex]:
@@ -267,8 +274,13 @@ class NmaOptions:
     amplitude_start: float = 1e-6  # m, first-harmonic amplitude at ``output``
     amplitude_end: float = 1e-3
     output: str | None = None  # where the amplitude is measured (None: the model's first output)
+    # the self-excitation -xi M u' on every harmonic ("all": Krack 2015, as NLvib and tmdsimpy), or
+    # on the fundamental only ("fundamental"), which leaves the higher harmonics their physical
+    # damping: a mode near an internal resonance then does not pump energy into the other mode
+    excitation: str = "all"
     harmonics: Harmonics = Harmonics(5, 256)
     continuation: ContinuationOptions = field(default_factory=ContinuationOptions)
+    harmonic_tol: float = 0.05  # warn above this truncation estimate (as SweepOptions.harmonic_tol)
     # amplitudes (m) at which the mode is also solved exactly, by Newton at that amplitude from the
     # nearest branch point (Backbone.info["at"]): to compare backbones at the same amplitudes
     at: tuple[float, ...] = ()
@@ -334,7 +346,7 @@ def compute_backbone(model: Structure | Reduction, options: NmaOptions, *, callb
     output = options.output or next(iter(inner.layout.outputs), None)
     if output is None:
         raise NmaError("the model has no output at which to measure the amplitude")
-    problem = ModalProblem(inner, options.mode, output)
+    problem = ModalProblem(inner, options.mode, output, excitation=options.excitation)
     lam0, lam1 = math.log10(a0), math.log10(a1)
     sc = problem.scales(lam0, lam1)
     cont = options.continuation
@@ -371,7 +383,7 @@ def compute_backbone(model: Structure | Reduction, options: NmaOptions, *, callb
     U = problem.static[None, :] + (10.0 ** lam)[:, None] * X[:, :nc]
     info = {"time_setup_s": t_setup, "time_online_s": time.perf_counter() - t1, "continuation": steps,
             "num_unknowns": int(max(r.unknowns for r in recs)), "newton_tol": cont.newton.tol,
-            "linear_omega_rad_s": problem.omega0, "linear_zeta": problem.xi0 / (2 * problem.omega0),
+            "excitation": options.excitation, "linear_omega_rad_s": problem.omega0, "linear_zeta": problem.xi0 / (2 * problem.omega0),
             "status": "complete" if stopped is None else "incomplete", "at": at,
             # the EPMC is a model of the damped free decay, not a motion of the structure: no stability
             "stability": "not applicable (nonlinear modes: the EPMC's self-excited motion is not a response)",
@@ -389,6 +401,22 @@ def compute_backbone(model: Structure | Reduction, options: NmaOptions, *, callb
         info["stop_reason"] = str(stopped).replace("lam = ", "log10(amplitude [m]) = ").replace("lam_end",
                                                                                                "amplitude_end")
     info.update(problem.branch_info())
+    warnings = []
+    he = info["arrays"]["harmonic_error"]
+    if he.max() > options.harmonic_tol:
+        k = int(np.argmax(he))
+        warnings.append(f"harmonic truncation estimate {he[k]:.3g} > {options.harmonic_tol:g} at amplitude "
+                        f"{10.0 ** lam[k]:.6g} m: more harmonics are needed there (H = {h.H})")
+    back = np.flatnonzero(np.diff(lam) < 0)
+    if back.size:
+        warnings.append(f"the backbone turns back in amplitude at {10.0 ** lam[back[0]]:.6g} m (omega "
+                        f"{X[back[0], nc]:.6g} rad/s)" + (": the self-excitation may be feeding a higher harmonic "
+                        "(an internal resonance); self_excitation = \"fundamental\" excites the fundamental only"
+                        if options.excitation == "all" else ""))
+    for w_ in warnings:
+        log.warning("nma: %s", w_)
+    if warnings:
+        info["warnings"] = warnings
     bb = Backbone(output, options.mode, 10.0 ** lam, X[:, nc], X[:, nc + 1], U,
                   np.array([r.states for r in recs], dtype=np.int8), h, dict(problem.layout.outputs),
                   problem.layout.pair_names, info)
