@@ -754,3 +754,59 @@ def write_nma(solution: NmaSolution, scene: Scene, out: Path, *, method: str, ro
             frf = load_branch(Path(frf_folder) / "branch.npz")
         plot_synthesized(bb, synth, out / "frf_synthesized.png", frf=frf, output=bb.output, title=title)
     return summary
+
+
+def compare_nma_scene(scene: Scene, methods: str, defaults: RomOptions, *, out: Path, reference: str = "full",
+                      progress=None) -> str:
+    """``compare --analysis nma``: every method's backbone against the reference's (full order, or
+    a method spec), errors in omega and zeta at amplitudes spread over the [nma] range; writes
+    compare.csv, compare.md and compare_backbone.png into ``out`` and returns the Markdown."""
+    from .analysis.compare import parse_method
+    from .analysis.nma import compare_backbones
+    from .plots import pyplot
+    from .results import atomic_write_text, write_table
+
+    opts = nma_options(scene)
+    specs = [parse_method(m, defaults) for m in methods.split(",") if m.strip()]
+    if any(s.method == "exact" for s in specs) or reference == "exact":
+        raise SceneError(scene.path, "--methods", methods, "exact: the condensation has no mass operator, so no "
+                         "nonlinear modes; compare backbones of full order and the ROMs")
+    check_solvable(scene)
+    structure = create_structure(scene)
+    check_nma(scene, structure, opts)
+    results = compare_backbones(structure, specs, opts, reference=reference, progress=progress)
+    rows = [r.row() for r in results]
+    write_table(rows, out / "compare.csv")
+    head = ("| method | size | status | points | offline s | online s | omega rel err | zeta rel err | "
+            "amplitudes |")
+    lines = [f"# {scene.name}: nonlinear mode {opts.mode}, every method against {results[0].label}", "",
+             f"Scene {scene.path}, amplitude {opts.amplitude_start:g} to {opts.amplitude_end:g} m at "
+             f"{opts.output or next(iter(structure.outputs))}, H = {opts.harmonics.H}, N = {opts.harmonics.N}, "
+             f"self-excitation {opts.excitation}; errors are the largest over the amplitudes at which both were "
+             f"solved exactly.", "", head, "|" + "---|" * 9]
+    for r in rows:
+        size = f"{r['size_min']}" if r["size_min"] == r["size_max"] else f"{r['size_min']}-{r['size_max']}"
+        lines.append(f"| {r['method']} | {size} | {r['status']} | {r['points']} | {r['offline_s']:.2f} | "
+                     f"{r['online_s']:.2f} | {r['omega_rel_err']:.2e} | {r['zeta_rel_err']:.2e} | "
+                     f"{r['amplitudes_compared']} |" + (f" {r['failure']}" if r["failure"] else ""))
+    md = "\n".join(lines) + "\n"
+    atomic_write_text(out / "compare.md", md)
+    plt = pyplot()
+    fig, (a1, a2) = plt.subplots(2, 1, figsize=(7.0, 6.0), sharex=True)
+    for r in results:
+        if r.backbone is None:
+            continue
+        bb = r.backbone
+        a1.semilogx(bb.amplitude, bb.omega / (2 * np.pi), label=r.label)
+        a2.semilogx(bb.amplitude, bb.zeta, label=r.label)
+    a1.set_ylabel("frequency [Hz]")
+    a2.set_ylabel("damping ratio [-]")
+    a2.set_xlabel(f"first-harmonic amplitude at {results[0].backbone.output} [m]")
+    for ax in (a1, a2):
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=8)
+    a1.set_title(f"{scene.name}: mode {opts.mode}", fontsize=10)
+    fig.tight_layout()
+    atomic_write(out / "compare_backbone.png", lambda p: fig.savefig(p, dpi=110, format="png"))
+    plt.close(fig)
+    return md

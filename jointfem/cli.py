@@ -195,8 +195,14 @@ def cmd_compare(args) -> int:
         if not args.quiet:
             print(f"jointfem compare: {label} ...", file=sys.stderr, flush=True)
 
-    md = app.compare_scene(scene, args.methods, _rom_options(args), out=out, output=args.output,
-                           reference=args.reference, progress=progress, stability=args.stability)
+    if args.analysis == "nma":
+        app.nma_options(scene)  # a scene without [nma]: one line, before any work
+        app.check_output(out)
+        md = app.compare_nma_scene(scene, args.methods, _rom_options(args), out=out, reference=args.reference,
+                                   progress=progress)
+    else:
+        md = app.compare_scene(scene, args.methods, _rom_options(args), out=out, output=args.output,
+                               reference=args.reference, progress=progress, stability=args.stability)
     if not args.quiet:
         print(md)
         print(f"-> {out}/")
@@ -311,6 +317,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help=f"default TVDs for methods given without ({defaults.ROM_TVD})")
     _tvd_kind_arg(c)
     c.add_argument("--output", help="output DOF the errors are measured on (default: the scene's first)")
+    c.add_argument("--analysis", choices=("frf", "nma"), default="frf",
+                   help="frf (default): forced responses; nma: nonlinear modes of the scene's [nma] table, errors "
+                        "in frequency and damping over its amplitude range")
     c.add_argument("--reference", choices=("full", "exact"), default="full",
                    help="reference solution: full order (default) or the exact condensation (same solution, "
                         "cheaper for a large continuum)")

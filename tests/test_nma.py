@@ -229,3 +229,16 @@ def test_fundamental_self_excitation_balances_the_joint_energy():
     for a in (2.0, 10.0):
         f, g = fund.info["at"][a], full.info["at"][a]
         assert abs(f["omega_rad_s"] / g["omega_rad_s"] - 1) < 1e-3 and abs(f["zeta"] / g["zeta"] - 1) < 1e-2
+
+
+def test_compare_backbones_from_the_command_line(tmp_path):
+    """`compare --analysis nma`: the penalty ROM of the SDOF oscillator (its one mode and the slider's
+    internal variable: the full model) has the full model's backbone at every compared amplitude."""
+    out = tmp_path / "cmp"
+    assert main(["compare", str(ROOT / "demos" / "sdof_jenkins.toml"), "--analysis", "nma", "--methods",
+                 "penalty:1:0", "--out", str(out), "--quiet", "--harmonics", "3", "--samples", "64"]) == 0
+    rows = np.genfromtxt(out / "compare.csv", delimiter=",", names=True, dtype=None, encoding=None)
+    pen = rows[rows["method"] == "penalty:1"][0]
+    assert pen["amplitudes_compared"] == 12 and pen["size_min"] == 1 and pen["size_max"] == 2
+    assert pen["omega_rel_err"] < 1e-9 and pen["zeta_rel_err"] < 1e-8
+    assert (out / "compare_backbone.png").is_file() and "omega rel err" in (out / "compare.md").read_text()

@@ -488,5 +488,75 @@ def synthesize_frf(backbone: Backbone, scale: float = 1.0) -> dict:
     return {"omega": om, "amplitude": a, "peak_amplitude": pk_a, "peak_omega": pk_w}
 
 
+
+
+@dataclass
+class BackboneResult:
+    """One method's backbone in a comparison: sizes, times, and its largest relative errors in
+    omega and zeta against the reference at the comparison's amplitudes (each solved there)."""
+
+    label: str
+    backbone: Backbone | None
+    offline_s: float
+    online_s: float
+    omega_err: float = float("nan")
+    zeta_err: float = float("nan")
+    compared: int = 0  # amplitudes at which both were solved
+    failure: str = ""
+
+    def row(self) -> dict:
+        bb = self.backbone
+        sz = bb.info["arrays"]["rom_size"] if bb is not None else np.zeros(1, int)
+        return {"method": self.label, "size_min": int(sz.min()), "size_max": int(sz.max()),
+                "status": bb.info["status"] if bb is not None else "failed",
+                "points": bb.num_points if bb is not None else 0, "offline_s": self.offline_s,
+                "online_s": self.online_s, "omega_rel_err": self.omega_err, "zeta_rel_err": self.zeta_err,
+                "amplitudes_compared": self.compared, "failure": self.failure}
+
+
+def compare_backbones(structure: Structure, specs, options: NmaOptions, *, reference: str = "full",
+                      num_amplitudes: int = 12, progress=None) -> list[BackboneResult]:
+    """The backbone of the reference (full order, or a ROM given as a method spec) and of every
+    method of ``specs`` (analysis.compare.MethodSpec), each solved exactly at ``num_amplitudes``
+    amplitudes spread evenly in log over the range; the first result is the reference.  A method
+    that stops early is compared where it got to (its status says so)."""
+    from ..rom import RomOptions, build_rom
+    from .compare import MethodSpec, parse_method
+
+    lo, hi = math.log10(options.amplitude_start), math.log10(options.amplitude_end)
+    at = tuple(float(a) for a in np.logspace(lo, hi, num_amplitudes + 2)[1:-1])
+    opts = replace(options, at=at)
+    ref_spec = parse_method(reference, RomOptions()) if reference != "full" else MethodSpec("full", RomOptions())
+    specs = [ref_spec] + [s for s in specs if s.label != ref_spec.label]
+    out: list[BackboneResult] = []
+    for spec in specs:
+        if progress:
+            progress(spec.label)
+        t0 = time.perf_counter()
+        model = structure if spec.method == "full" else build_rom(structure, spec.method, spec.options)
+        offline = time.perf_counter() - t0
+        t1 = time.perf_counter()
+        try:
+            bb = compute_backbone(model, opts)
+        except NmaIncomplete as exc:
+            bb = exc.backbone
+        except (ContinuationError, ConvergenceError, NmaError) as exc:
+            if not out:
+                raise
+            out.append(BackboneResult(spec.label, None, offline, time.perf_counter() - t1, failure=str(exc)))
+            continue
+        res = BackboneResult(spec.label, bb, offline, time.perf_counter() - t1)
+        if out:
+            ref = out[0].backbone.info["at"]
+            mine = bb.info["at"]
+            common = [a for a in at if a in ref and a in mine]
+            if common:
+                res.omega_err = max(abs(mine[a]["omega_rad_s"] / ref[a]["omega_rad_s"] - 1) for a in common)
+                res.zeta_err = max(abs(mine[a]["zeta"] / ref[a]["zeta"] - 1) for a in common)
+            res.compared = len(common)
+        out.append(res)
+    return out
+
+
 __all__ = ["ModalProblem", "NmaOptions", "Backbone", "NmaError", "NmaIncomplete", "compute_backbone",
-           "synthesize_frf"]
+           "synthesize_frf", "BackboneResult", "compare_backbones"]
