@@ -589,7 +589,8 @@ def compare_scene(scene: Scene, methods: str, defaults: RomOptions, *, out: Path
     return md
 
 
-NMA_OWNED = ("backbone.csv", "branch.npz", "summary.json", "backbone.png", "frf_synthesized.png")
+NMA_OWNED = ("backbone.csv", "branch.npz", "summary.json", "shape.npz", "backbone.png", "frf_synthesized.png",
+             "states_branch.png", "interface_*.png", "shape_*.png")
 
 
 @dataclass
@@ -687,7 +688,7 @@ def write_nma(solution: NmaSolution, scene: Scene, out: Path, *, method: str, ro
     ``frf_folder`` overlaid)."""
     from .analysis.nma import synthesize_frf
     from .plots import plot_backbone, plot_synthesized
-    from .results import _json
+    from .results import _json, output_arrays
 
     bb = solution.backbone
     arr = bb.info["arrays"]
@@ -700,22 +701,26 @@ def write_nma(solution: NmaSolution, scene: Scene, out: Path, *, method: str, ro
     if not np.all(np.isfinite(table)) or not np.all(np.isfinite(bb.U)):
         raise OutputError("the backbone holds a non-finite value; nothing written")
     out = Path(out)
-    for pattern in NMA_OWNED:  # an earlier run's files in this folder
-        p = out / pattern
-        if p.is_file() and (out / "summary.json").is_file():
+    if (out / "summary.json").is_file():  # an earlier run's files in this folder
+        for p in [p for pattern in NMA_OWNED + OWNED for p in out.glob(pattern) if p.is_file()]:
             p.unlink()
     atomic_write(out / "backbone.csv", lambda p: np.savetxt(p, table, delimiter=",", header=",".join(header),
                                                              comments="", fmt="%.12e"))
 
     def npz(p):
         with open(p, "wb") as fh:
+            q = bb.U.shape[1] // bb.harmonics.num_hc
+            # the arrays of a forced sweep's branch.npz too, so that `jointfem plot` and `export` read it
             np.savez_compressed(fh, amplitude=bb.amplitude, omega=bb.omega, xi=bb.xi, zeta=bb.zeta, U=bb.U,
                                 states=bb.states, H=bb.harmonics.H, N=bb.harmonics.N, output=np.array(bb.output),
-                                output_names=np.array(names, dtype=str), pair_names=np.array(bb.pair_names, dtype=str),
+                                num_dofs=q, output_names=np.array(names, dtype=str), **output_arrays(bb.outputs, q),
+                                **({"pair_coords": np.asarray(bb.pair_coords)} if bb.pair_coords is not None else {}),
+                                pair_names=np.array(bb.pair_names, dtype=str),
                                 layout=np.array("harmonic-major: U[j*n + dof], j=0 const, 2k-1 cos k, 2k sin k"),
                                 **{k: np.asarray(v) for k, v in arr.items()})
 
     atomic_write(out / "branch.npz", npz)
+    save_shape(solution.structure, solution.rom, out)
     synth = None
     if np.any(np.abs(arr["modal_force_N"]) > 0):
         synth = synthesize_frf(bb)

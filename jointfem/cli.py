@@ -158,6 +158,10 @@ def cmd_nma(args) -> int:
         return 0
     summary = app.write_nma(solution, scene, out, method=args.method, rom_options=options,
                             frf_folder=Path(args.frf) if args.frf else None, wall_start=t0)
+    if args.plots and solution.structure.num_pairs:
+        from .viz import plot_folder
+
+        plot_folder(out)
     if solution.incomplete is not None:
         stop = solution.incomplete
         print(f"jointfem: backbone incomplete: {stop}. The {summary['num_points']} converged points are in {out}/ "
@@ -290,6 +294,8 @@ def build_parser() -> argparse.ArgumentParser:
     nm.add_argument("--tvd", type=int, default=defaults.ROM_TVD)
     _tvd_kind_arg(nm)
     nm.add_argument("--quiet", action="store_true")
+    nm.add_argument("--plots", action="store_true",
+                    help="also the contact-state pictures (as `jointfem plot`; 'peak' is the largest amplitude)")
     _set_arg(nm)
     nm.set_defaults(func=cmd_nma)
     ex = sub.add_parser("export", help="ParaView files (VTU) of a result folder at one branch point")
@@ -301,7 +307,7 @@ def build_parser() -> argparse.ArgumentParser:
     ex.add_argument("--quiet", action="store_true")
     ex.set_defaults(func=cmd_export)
     pp = sub.add_parser("plot", help="contact-state pictures of a result folder (PNG, off-screen)")
-    pp.add_argument("folder", help="a folder written by `jointfem frf`")
+    pp.add_argument("folder", help="a folder written by `jointfem frf` or `jointfem nma`")
     grp = pp.add_mutually_exclusive_group()
     grp.add_argument("--point", default="peak", help="'peak' (default) or a branch point index")
     grp.add_argument("--omega", type=float, help="the branch point nearest to this omega, rad/s")

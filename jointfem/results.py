@@ -159,11 +159,7 @@ def save_frf(frf: FrequencyResponse, out: Path, *, summary: dict) -> dict:
                 fh, omega=frf.omega, U=frf.U, iterations=frf.iterations, states=frf.states,
                 H=frf.harmonics.H, N=frf.harmonics.N, num_dofs=frf.num_dofs,
                 dof_names=np.array(frf.dof_names, dtype=str), pair_names=np.array(frf.pair_names, dtype=str),
-                output_names=np.array(names, dtype=str),
-                **({"output_dofs": np.array([frf.outputs[k] for k in names])} if all(
-                    np.ndim(frf.outputs[k]) == 0 for k in names) else
-                   {"output_recovery": np.array([np.broadcast_to(frf.outputs[k], (frf.num_dofs,)) if np.ndim(
-                       frf.outputs[k]) else np.eye(frf.num_dofs)[frf.outputs[k]] for k in names])}),
+                output_names=np.array(names, dtype=str), **output_arrays(frf.outputs, frf.num_dofs),
                 state_names=np.array(STATE_NAMES), layout=np.array("harmonic-major: U[j*n + dof], j=0 const, 2k-1 cos k, 2k sin k"),
                 **({"pair_coords": np.asarray(frf.info["pair_coords"])} if "pair_coords" in frf.info else {}),
                 **{k: np.asarray(v) for k, v in frf.info.get("arrays", {}).items()})
@@ -196,6 +192,16 @@ def save_frf(frf: FrequencyResponse, out: Path, *, summary: dict) -> dict:
         summary["stability"] = stab
     atomic_write(out / "summary.json", lambda p: Path(p).write_text(json.dumps(summary, indent=2, default=_json)))
     return summary
+
+
+def output_arrays(outputs: dict, num_dofs: int) -> dict:
+    """How a branch.npz names its outputs: ``output_dofs`` (an index per output) where every output
+    is a DOF, else ``output_recovery`` (a row over the coordinates per output)."""
+    names = list(outputs)
+    if all(np.ndim(outputs[k]) == 0 for k in names):
+        return {"output_dofs": np.array([outputs[k] for k in names])}
+    return {"output_recovery": np.array([np.broadcast_to(outputs[k], (num_dofs,)) if np.ndim(outputs[k])
+                                         else np.eye(num_dofs)[outputs[k]] for k in names])}
 
 
 def _json(o):

@@ -204,6 +204,9 @@ def test_cli_writes_a_backbone_folder(tmp_path, capsys):
     stuck = tab["amplitude_m"] < 0.99
     assert np.allclose(tab["omega_rad_s"][stuck], math.sqrt(2), rtol=1e-10)
     assert np.allclose(tab["damping_ratio"][stuck], 0.02 / (2 * math.sqrt(2)), rtol=1e-8)
+    # `jointfem plot` reads a backbone's folder as a sweep's
+    assert main(["plot", str(out), "--quiet"]) == 0
+    assert (out / "states_branch.png").is_file()
 
 
 def test_cli_keeps_an_incomplete_backbone(tmp_path, capsys):

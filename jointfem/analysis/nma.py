@@ -36,6 +36,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 import scipy.sparse as sp
+import scipy.sparse.linalg as spla
 
 from ..continuation.arclength import (Adaptive, ContinuationError, ContinuationOptions, ConvergenceError,
                                      continue_branch, solve_adaptive)
@@ -80,7 +81,7 @@ class ModalProblem(Problem):
             self._out[:] = o
         else:
             self._out[int(o)] = 1.0
-        self._ops = None  # (key, F_h, NM, E1) per set of unknowns
+        self._ops = None  # (key, unknowns, F_h, nabla (x) M, nabla (x) I, Delta2) for the inner unknowns now
         self.static = np.zeros(self.nc)
         self._static_state()
         self.omega0, self.xi0, self.shape0, self.r_scale = self._linear_mode()
@@ -124,8 +125,7 @@ class ModalProblem(Problem):
             if np.abs(r).max(initial=0.0) <= 1e-12 * ref:
                 break
             J = ev.J[:qn, :qn]
-            J = J.toarray() if sp.issparse(J) else np.asarray(J)
-            U[u[:qn]] -= np.linalg.solve(J, r)
+            U[u[:qn]] -= spla.spsolve(J.tocsc(), r) if sp.issparse(J) else np.linalg.solve(J, r)
         else:
             raise NmaError(f"the static state under the preload did not converge: max|R0| = {np.abs(r).max():.3e} N")
         self.static = U
@@ -307,6 +307,7 @@ class Backbone:
     outputs: dict
     pair_names: tuple = ()
     info: dict = field(default_factory=dict)
+    pair_coords: np.ndarray | None = None  # (pairs, 3) m, for the interface pictures
 
     @property
     def zeta(self) -> np.ndarray:
@@ -392,6 +393,8 @@ def compute_backbone(model: Structure | Reduction, options: NmaOptions, *, callb
                        "energy_J": np.array([p.extra[1] for p in points]),
                        "joint_energy_J": np.array([r.pair_summary[:, 0].sum() for r in recs]),
                        "pair_energy_J": np.array([r.pair_summary[:, 0] for r in recs]),
+                       "pair_tangential_amp_m": np.array([r.pair_summary[:, 1] for r in recs]),
+                       "pair_peak_normal_N": np.array([r.pair_summary[:, 2] for r in recs]),
                        "modal_mass_kg": np.array([p.extra[2] for p in points]),
                        "modal_force_N": np.array([p.extra[3] for p in points]),
                        "harmonic_error": np.array([r.harmonic_error for r in recs]),
@@ -419,7 +422,7 @@ def compute_backbone(model: Structure | Reduction, options: NmaOptions, *, callb
         info["warnings"] = warnings
     bb = Backbone(output, options.mode, 10.0 ** lam, X[:, nc], X[:, nc + 1], U,
                   np.array([r.states for r in recs], dtype=np.int8), h, dict(problem.layout.outputs),
-                  problem.layout.pair_names, info)
+                  problem.layout.pair_names, info, problem.layout.pair_coords)
     if stopped is not None:
         raise NmaIncomplete(info["stop_reason"], backbone=bb, points=points, interrupted=stopped.interrupted)
     return bb
