@@ -206,11 +206,19 @@ class ModalProblem(Problem):
         return x
 
     def scales(self, lam_start, lam_end) -> Scales:
-        """The linear mode's coordinates (at least 1e-3 of its largest; coordinates that it does
-        not move, the largest), omega0 for omega and for xi."""
+        """Per coordinate, the larger of the linear mode's amplitude and the inner problem's own
+        scale near the mode (brought to the mode's size: a ROM's scales hold the amplitude at which
+        a basis vector alone reaches the largest displacement, hbm.forced.compute_rom_scales, which
+        a joint that slips excites however little the mode moves it; without them the arclength
+        is dominated by those coordinates at the onset of slip, measured on a CB ROM of the lap
+        joint); at least 1e-3 of the largest.  omega0 for omega and for xi."""
         q = self.layout.num_coords
-        per = np.abs(self.shape0[self.harmonics.cos(1, q)])
+        blk = self.harmonics.cos(1, q)
+        per = np.abs(self.shape0[blk])
         top = per.max()
+        own = self.inner.scales(0.99 * self.omega0, 1.01 * self.omega0).x[blk]
+        if np.all(np.isfinite(own)) and own.max() > 0:
+            per = np.maximum(per, own * (top / own.max()))
         per = np.where(per > 0, np.maximum(per, 1e-3 * top), top)
         x = Scales.from_coordinates(per, self.harmonics, self.r_scale).x
         return Scales(np.concatenate([x, [self.omega0, self.omega0]]), self.r_scale)
