@@ -203,10 +203,11 @@ def plot_synthesized(bb, synth: dict, path: Path, *, frf: dict | None = None, ou
         names = [str(s) for s in frf["output_names"]]
         if output in names:
             j = names.index(output)
-            H, q = int(frf["H"]), int(frf["num_dofs"])
-            U = frf["U"].reshape(frf["U"].shape[0], 2 * H + 1, q)
-            row = (frf["output_recovery"][j] if "output_recovery" in frf else np.eye(q)[int(frf["output_dofs"][j])])
-            amp = np.hypot(U[:, 1] @ row, U[:, 2] @ row)
+            from .harmonics import Harmonics
+            from .results import first_harmonic_amplitude
+
+            out = frf["output_recovery"][j] if "output_recovery" in frf else int(frf["output_dofs"][j])
+            amp = first_harmonic_amplitude(frf["U"], Harmonics(int(frf["H"]), int(frf["N"])), out)
             ax.plot(frf["omega"] * hz, amp, "k--", lw=1, label="forced sweep (HBM)")
     ax.set_xlabel("frequency [Hz]")
     ax.set_ylabel(f"first-harmonic amplitude at {bb.output} [m]")

@@ -194,6 +194,16 @@ def save_frf(frf: FrequencyResponse, out: Path, *, summary: dict) -> dict:
     return summary
 
 
+def first_harmonic_amplitude(U: np.ndarray, harmonics: Harmonics, out) -> np.ndarray:
+    """First-harmonic amplitude of an output (a coordinate index, or a recovery row over the
+    coordinates) at every point of a branch U (points, num_hc * q), m."""
+    q = U.shape[1] // harmonics.num_hc
+    c, s = U[:, harmonics.cos(1, q)], U[:, harmonics.sin(1, q)]
+    if np.ndim(out):
+        return np.hypot(c @ out, s @ out)
+    return np.hypot(c[:, out], s[:, out])
+
+
 def output_arrays(outputs: dict, num_dofs: int) -> dict:
     """How a branch.npz names its outputs: ``output_dofs`` (an index per output) where every output
     is a DOF, else ``output_recovery`` (a row over the coordinates per output)."""

@@ -190,9 +190,11 @@ def test_bad_nma_tables(tmp_path, capsys, table, key):
 
 
 def test_cli_writes_a_backbone_folder(tmp_path, capsys):
-    out = tmp_path / "nma"
-    assert main(["nma", str(ROOT / "demos" / "sdof_jenkins.toml"), "--out", str(out), "--quiet",
+    out, frf = tmp_path / "nma", tmp_path / "frf"
+    assert main(["frf", str(ROOT / "demos" / "sdof_jenkins.toml"), "--out", str(frf), "--quiet",
                  "--harmonics", "3", "--samples", "64"]) == 0
+    assert main(["nma", str(ROOT / "demos" / "sdof_jenkins.toml"), "--out", str(out), "--quiet",
+                 "--harmonics", "3", "--samples", "64", "--frf", str(frf)]) == 0
     for f in ("backbone.csv", "branch.npz", "summary.json", "backbone.png", "frf_synthesized.png"):
         assert (out / f).is_file(), f
     summary = json.loads((out / "summary.json").read_text())

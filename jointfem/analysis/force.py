@@ -22,6 +22,7 @@ from ..continuation.arclength import Adaptive, ContinuationError, ContinuationOp
 from ..harmonics import Harmonics
 from ..hbm.problem import Evaluation, Problem, Scales, newton_system
 from ..models.structure import Structure
+from ..results import first_harmonic_amplitude
 from ..rom.common import Reduction
 from .frf import create_problem, resumed_points
 
@@ -118,12 +119,7 @@ class ForceResponse:
 
     def amplitude(self, name: str) -> np.ndarray:
         """First-harmonic amplitude of an output at every point, m."""
-        q = self.U.shape[1] // self.harmonics.num_hc
-        out = self.outputs[name]
-        c, s = self.U[:, self.harmonics.cos(1, q)], self.U[:, self.harmonics.sin(1, q)]
-        if np.ndim(out):
-            return np.hypot(c @ out, s @ out)
-        return np.hypot(c[:, out], s[:, out])
+        return first_harmonic_amplitude(self.U, self.harmonics, self.outputs[name])
 
 
 class ForceIncomplete(ContinuationError):

@@ -44,6 +44,7 @@ from ..harmonics import Harmonics
 from ..hbm.problem import Evaluation, Problem, Scales, newton_system
 from ..linalg import eigen
 from ..models.structure import Structure
+from ..results import first_harmonic_amplitude
 from ..rom.common import Reduction
 from .convergence import top_harmonic_share
 from .frf import create_problem
@@ -328,12 +329,7 @@ class Backbone:
 
     def output_amplitude(self, name: str) -> np.ndarray:
         """First-harmonic amplitude of an output at every point, m."""
-        q = self.U.shape[1] // self.harmonics.num_hc
-        out = self.outputs[name]
-        c, s = self.U[:, self.harmonics.cos(1, q)], self.U[:, self.harmonics.sin(1, q)]
-        if np.ndim(out):
-            return np.hypot(c @ out, s @ out)
-        return np.hypot(c[:, out], s[:, out])
+        return first_harmonic_amplitude(self.U, self.harmonics, self.outputs[name])
 
 
 class NmaIncomplete(ContinuationError):
