@@ -28,3 +28,11 @@ def linear_modes(structure, num=10):
     from .app import linear_modes as _modes
 
     return _modes(structure, num)
+
+
+def compute_backbone(model, options, **kw):
+    """See jointfem.analysis.nma.compute_backbone: a nonlinear mode (EPMC), frequency and damping
+    against amplitude."""
+    from .analysis.nma import compute_backbone as _backbone
+
+    return _backbone(model, options, **kw)
