@@ -99,7 +99,8 @@ def dominant(data: dict) -> np.ndarray:
 # ---- matplotlib: pairs against frequency ---------------------------------------------------
 
 def plot_state_map(data: dict, path: Path, *, title: str = "") -> Picture:
-    """Every pair (rows) at every branch point (columns at its frequency, Hz, as in frf.png): a
+    """Every pair (rows) at every branch point (columns at its frequency, Hz, as in frf.png; along a
+    backbone at log10 of its amplitude, as in backbone.png): a
     stacked bar per pair and point whose parts are the shares of the period it sticks (bottom),
     slips and is separated (top), so that a state held for part of the period shows in proportion
     instead of being hidden by the dominant one."""
@@ -112,7 +113,9 @@ def plot_state_map(data: dict, path: Path, *, title: str = "") -> Picture:
     share = np.stack([fractions(data, i) for i in range(data["states"].shape[0])])  # (points, P, 3)
     n_pts, P = share.shape[:2]
     fig, ax = plt.subplots(figsize=(8, 1.8 + 0.2 * min(P, 30)))
-    f = data["omega"] / (2 * np.pi)  # Hz, as frf.png
+    backbone = "xi" in data and "amplitude" in data  # a nonlinear mode's folder (jointfem nma)
+    # along a backbone the columns stand at log10 of its amplitude, as backbone.png's axis; else Hz, as frf.png
+    f = np.log10(data["amplitude"]) if backbone else data["omega"] / (2 * np.pi)
     # each point's column reaches halfway to its neighbours along the branch (where the branch turns
     # back, later points are drawn over earlier ones), and is at least 0.2 % of the range wide
     mid = 0.5 * (f[1:] + f[:-1])
@@ -133,7 +136,7 @@ def plot_state_map(data: dict, path: Path, *, title: str = "") -> Picture:
         bottom = bottom + h
     ax.set_xlim(x0.min(), x1.max())
     ax.set_ylim(-0.6, P - 0.4)
-    ax.set_xlabel("frequency [Hz]")
+    ax.set_xlabel(f"log10 of the first-harmonic amplitude at {data['output']} [m]" if backbone else "frequency [Hz]")
     ax.set_ylabel("contact pair")
     shown = tuple(k for k in range(3) if (share[..., k] > 0).any())
     labels = [STATE_NAMES[k] for k in range(3)]
