@@ -318,13 +318,14 @@ OWNED = ("frf.csv", "branch.npz", "summary.json", "shape.npz", "frf.png", "state
          "shape_*.png")
 
 
-def remove_stale(out: Path) -> list[Path]:
-    """Remove from a result folder the files an earlier run wrote there (OWNED), so that no picture
-    of another scene survives a new run into the same folder; other files are left alone."""
+def remove_stale(out: Path, owned: tuple = OWNED) -> list[Path]:
+    """Remove from a result folder the files an earlier run wrote there (``owned``: a sweep's OWNED,
+    or NMA_OWNED), so that no picture of another scene survives a new run into the same folder;
+    other files are left alone."""
     out = Path(out)
     if not (out / "summary.json").is_file():
         return []
-    gone = [p for pattern in OWNED for p in out.glob(pattern) if p.is_file()]
+    gone = [p for pattern in owned for p in out.glob(pattern) if p.is_file()]
     for p in gone:
         p.unlink()
     return gone
@@ -701,9 +702,7 @@ def write_nma(solution: NmaSolution, scene: Scene, out: Path, *, method: str, ro
     if not np.all(np.isfinite(table)) or not np.all(np.isfinite(bb.U)):
         raise OutputError("the backbone holds a non-finite value; nothing written")
     out = Path(out)
-    if (out / "summary.json").is_file():  # an earlier run's files in this folder
-        for p in [p for pattern in NMA_OWNED + OWNED for p in out.glob(pattern) if p.is_file()]:
-            p.unlink()
+    remove_stale(out, NMA_OWNED + OWNED)  # an earlier run's files (a sweep's too) in this folder
     atomic_write(out / "backbone.csv", lambda p: np.savetxt(p, table, delimiter=",", header=",".join(header),
                                                              comments="", fmt="%.12e"))
 

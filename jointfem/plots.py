@@ -8,6 +8,9 @@ import numpy as np
 from .results import FrequencyResponse
 
 
+STATE_COLORS = (("stick", "#4c9a2a"), ("slip", "#f0a30a"), ("separated", "#c8102e"))  # frf.png, backbone.png
+
+
 def pyplot():
     import matplotlib
 
@@ -71,7 +74,7 @@ def plot_frf(frf: FrequencyResponse, path: Path, *, title: str = "") -> Path:
         fr = frf.state_fractions().mean(axis=1)  # (points, 3)
         ax2 = axes[1, 0]
         # lines, not a stack: a branch that folds back in frequency must stay readable
-        for k, (name, color) in enumerate((("stick", "#4c9a2a"), ("slip", "#f0a30a"), ("separated", "#c8102e"))):
+        for k, (name, color) in enumerate(STATE_COLORS):
             ax2.plot(f_hz, fr[:, k], color=color, label=name)
         ax2.set_ylim(-0.02, 1.02)
         ax2.set_ylabel("share of\npair-time")
@@ -145,9 +148,6 @@ def plot_compare(results, output: str, frf_path: Path, pareto_path: Path, *, tit
     ax.set_xlabel("online time [s]")
     ax.set_ylabel("largest curve error [% of peak]")
     return Path(frf_path), finish(fig, ax, pareto_path, title=title, legend_size=7)
-
-
-STATE_COLORS = (("stick", "#4c9a2a"), ("slip", "#f0a30a"), ("separated", "#c8102e"))
 
 
 def plot_backbone(bb, path: Path, *, title: str = "") -> Path:

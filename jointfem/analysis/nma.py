@@ -82,7 +82,7 @@ class ModalProblem(Problem):
             self._out[:] = o
         else:
             self._out[int(o)] = 1.0
-        self._ops = None  # (key, unknowns, F_h, nabla (x) M, nabla (x) I, Delta2) for the inner unknowns now
+        self._ops: _Ops | None = None
         self.static = np.zeros(self.nc)
         self._static_state()
         self.omega0, self.xi0, self.shape0, self.r_scale = self._linear_mode()
@@ -92,16 +92,13 @@ class ModalProblem(Problem):
         u = self.inner.unknowns()
         return np.arange(self.nc) if u is None else u
 
-    def _operators(self):
-        """(unknowns, F_h, nabla (x) M, nabla (x) I) for the inner unknowns now; with
-        ``excitation = "fundamental"``, nabla of the first harmonic only."""
+    def _operators(self) -> "_Ops":
+        """The operators for the inner unknowns now (taken again when they change: the penalty ROM's
+        active set); with ``excitation = "fundamental"``, nabla of the first harmonic only."""
         u = self._inner_unknowns()
-        key = u.tobytes()
-        if self._ops is None or self._ops[0] != key:
-            nh = self.harmonics.num_hc
-            qn = u.size // nh
-            R0 = self.inner.evaluate(np.zeros(self.nc), 1.0, jacobian=False).R
-            Fh = -R0.copy()
+        if self._ops is None or not np.array_equal(self._ops.u, u):
+            qn = u.size // self.harmonics.num_hc
+            Fh = -self.inner.evaluate(np.zeros(self.nc), 1.0, jacobian=False).R
             Fh[:qn] = 0.0  # the static force stays
             d2 = self.inner.hill_operators(1.0)[1]
             nab = self.harmonics.derivative_matrix()
@@ -109,20 +106,21 @@ class ModalProblem(Problem):
                 first = self.harmonics.orders == 1
                 nab = nab * np.outer(first, first)
             NI = sp.csr_matrix(sp.kron(sp.csr_matrix(nab), sp.identity(qn)))
-            self._ops = (key, u, Fh, sp.csr_matrix(NI @ d2), NI, d2)
-        return self._ops[1:4]
+            self._ops = _Ops(u, qn, Fh, sp.csr_matrix(NI @ d2), NI, d2)
+        return self._ops
 
     def _static_state(self) -> None:
         """U_s: the static state under the preload alone (no motion), by Newton on the zeroth
         harmonic of the inner problem."""
-        u, Fh, _ = self._operators()
-        qn = u.size // self.harmonics.num_hc
+        ops = self._operators()
+        u, qn = ops.u, ops.qn
         U = np.zeros(self.nc)
-        ref = max(float(np.abs(Fh).max(initial=0.0)), float(np.abs(self.inner.evaluate(U, 1.0, jacobian=False).R).max(
-            initial=0.0)), 1e-300)
+        ref = None
         for _ in range(30):
             ev = self.inner.evaluate(U, 1.0, jacobian=True)
-            r = (ev.R + Fh)[:qn]
+            if ref is None:  # at U = 0: R(0) = -F, the external force
+                ref = max(float(np.abs(ev.R).max(initial=0.0)), float(np.abs(ops.Fh).max(initial=0.0)), 1e-300)
+            r = (ev.R + ops.Fh)[:qn]
             if np.abs(r).max(initial=0.0) <= 1e-12 * ref:
                 break
             J = ev.J[:qn, :qn]
@@ -134,9 +132,8 @@ class ModalProblem(Problem):
     def _linear_mode(self):
         """The stuck linear mode ``mode`` at the static state: (omega, xi, x per unit amplitude at
         the output over every coefficient, residual scale)."""
-        u, _, _ = self._operators()
-        nh = self.harmonics.num_hc
-        qn = u.size // nh
+        ops = self._operators()
+        u, qn = ops.u, ops.qn
         ev = self.inner.evaluate(self.static, 0.0, jacobian=True)  # J(U_s, omega = 0) = I (x) K_lin
         d1, d2 = self.inner.hill_operators(0.0)  # at omega = 0: I (x) D, I (x) M
         blk = slice(qn, 2 * qn)  # the cosine of the first harmonic
@@ -154,7 +151,7 @@ class ModalProblem(Problem):
         xi = float(phi @ (D @ phi))  # mass-normalised phi: the linear mode's 2 zeta omega
         x = np.zeros(self.nc)
         x[u[blk]] = phi / at_out
-        r = float(np.sqrt(max(w2[self.mode - 1], 0.0)) ** 2 * np.abs(M @ (phi / at_out)).max())
+        r = float(max(w2[self.mode - 1], 0.0) * np.abs(M @ (phi / at_out)).max())
         return float(np.sqrt(w2[self.mode - 1])), xi, x, max(r, 1e-300)
 
     # --- the protocol ------------------------------------------------------------------------------
@@ -173,11 +170,12 @@ class ModalProblem(Problem):
     def evaluate(self, x, lam, *, jacobian=True) -> Evaluation:
         a = 10.0 ** lam
         omega, xi = float(x[self.nc]), float(x[self.nc + 1])
-        u, Fh, NM = self._operators()
+        ops = self._operators()
+        u, NM = ops.u, ops.NM
         ev = self.inner.evaluate(self.physical(x, lam), omega, jacobian=jacobian)
         xu = x[u]
         nmx = NM @ xu
-        R_dyn = (ev.R + Fh) / a - xi * omega * nmx
+        R_dyn = (ev.R + ops.Fh) / a - xi * omega * nmx
         h, q = self.harmonics, self.layout.num_coords
         o = self._out
         c1, s1 = x[h.cos(1, q)], x[h.sin(1, q)]
@@ -233,24 +231,35 @@ class ModalProblem(Problem):
     # per point quantities
     def energy_per_cycle(self, x: np.ndarray, lam: float) -> float:
         """The energy the self-excitation puts in per period, which the structure dissipates, J."""
-        u = self._operators()[0]
-        NI, d2 = self._ops[4:]
-        y = NI @ x[u]
-        return float(x[self.nc + 1] * math.pi * x[self.nc] * 10.0 ** (2 * lam) * (y @ (d2 @ y)))
+        ops = self._operators()
+        y = ops.NI @ x[ops.u]
+        return float(x[self.nc + 1] * math.pi * x[self.nc] * 10.0 ** (2 * lam) * (y @ (ops.d2 @ y)))
 
     def modal_terms(self, x: np.ndarray) -> tuple[float, complex]:
         """(modal mass psi^H M psi, kg; modal force psi^H F, N) of the first harmonic psi = c_1 - i s_1
         per unit output amplitude, F = fc - i fs the scene's harmonic force (single nonlinear mode
         theory, ``synthesize_frf``)."""
-        u, Fh, _ = self._operators()
-        qn = u.size // self.harmonics.num_hc
-        d2 = self.inner.hill_operators(1.0)[1]
-        xu = x[u]
+        ops = self._operators()
+        qn, Fh = ops.qn, ops.Fh
+        xu = x[ops.u]
         c, s = xu[qn:2 * qn], xu[2 * qn:3 * qn]
-        M = d2[qn:2 * qn, qn:2 * qn]
+        M = ops.d2[qn:2 * qn, qn:2 * qn]
         m = float(c @ (M @ c) + s @ (M @ s))
         f = complex((c + 1j * s) @ (Fh[qn:2 * qn] - 1j * Fh[2 * qn:3 * qn]))
         return m, f
+
+
+@dataclass(frozen=True)
+class _Ops:
+    """What ModalProblem takes from its inner problem for one set of inner unknowns u (qn per
+    harmonic block): F_h, nabla (x) M and nabla (x) I (nabla of the excited harmonics), Delta2."""
+
+    u: np.ndarray
+    qn: int
+    Fh: np.ndarray
+    NM: sp.csr_matrix
+    NI: sp.csr_matrix
+    d2: sp.spmatrix
 
 
 class _Modal(Adaptive):
@@ -493,8 +502,6 @@ def synthesize_frf(backbone: Backbone, scale: float = 1.0) -> dict:
     else:
         pk_a, pk_w = float("nan"), float("nan")
     return {"omega": om, "amplitude": a, "peak_amplitude": pk_a, "peak_omega": pk_w}
-
-
 
 
 @dataclass
