@@ -772,9 +772,6 @@ def compare_nma_scene(scene: Scene, methods: str, defaults: RomOptions, *, out: 
 
     opts = nma_options(scene)
     specs = [parse_method(m, defaults) for m in methods.split(",") if m.strip()]
-    if any(s.method == "exact" for s in specs) or reference == "exact":
-        raise SceneError(scene.path, "--methods", methods, "exact: the condensation has no mass operator, so no "
-                         "nonlinear modes; compare backbones of full order and the ROMs")
     check_solvable(scene)
     structure = create_structure(scene)
     check_nma(scene, structure, opts)

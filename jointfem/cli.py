@@ -288,8 +288,9 @@ def build_parser() -> argparse.ArgumentParser:
     nm.add_argument("--frf", metavar="DIR", help="a `jointfem frf` result folder to overlay on the synthesised FRF")
     nm.add_argument("--harmonics", type=int, help="number of harmonics H (overrides the scene)")
     nm.add_argument("--samples", type=int, help="AFT time samples N >= 2H+1 (overrides the scene)")
-    nm.add_argument("--method", choices=[m for m in METHODS if m != "exact"], default="full",
-                    help="model reduction (default: full order; not exact: its condensation has no mass operator)")
+    nm.add_argument("--method", choices=METHODS, default="full",
+                    help="model reduction (default: full order; exact: the condensation on the gaps, the same "
+                         "backbone as full order)")
     nm.add_argument("--modes", type=int, default=defaults.ROM_MODES)
     nm.add_argument("--tvd", type=int, default=defaults.ROM_TVD)
     _tvd_kind_arg(nm)

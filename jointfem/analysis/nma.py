@@ -19,8 +19,8 @@ is cos(tau): c_1 = 1, s_1 = 0 there (the amplitude is measured where the user sa
 phase of the autonomous motion is fixed).  F_h = -R(0) on the harmonic blocks (the contact forces
 vanish at zero gaps: R(0) = -F), and nabla (x) M = (nabla (x) I) Delta2, with Delta2 = I (x) M
 the problem's Hill operator: any problem with Hill operators has nonlinear modes (full order,
-the Galerkin ROMs, the penalty ROM with its active set; not the exact condensation, whose
-dynamic compliance would have to include the xi M term).
+the Galerkin ROMs, the penalty ROM with its active set).  The exact condensation, which has none,
+carries xi M inside its dynamic stiffness instead (CondensedModalProblem).
 
 Per point: omega (rad/s), zeta, the energy dissipated per cycle (W = xi pi omega sum_k k^2
 (c_k^T M c_k + s_k^T M s_k), the self-excitation's input, equal to the dissipation of a period),
@@ -41,6 +41,7 @@ import scipy.sparse.linalg as spla
 from ..continuation.arclength import (Adaptive, ContinuationError, ContinuationOptions, ConvergenceError,
                                      continue_branch, solve_adaptive)
 from ..harmonics import Harmonics
+from ..hbm.condensed import CondensedProblem
 from ..hbm.problem import Evaluation, Problem, Scales, newton_system
 from ..linalg import eigen
 from ..models.structure import Structure
@@ -64,9 +65,7 @@ class ModalProblem(Problem):
     EXCITATIONS = ("all", "fundamental")
 
     def __init__(self, inner: Problem, mode: int, output: str, *, excitation: str = "all"):
-        if inner.hill_operators(1.0) is None:
-            raise NmaError("nonlinear modes need the mass operator of the problem (Hill's Delta2), which this "
-                           "method does not have (the exact condensation): use full order or a ROM")
+        self._check(inner)
         if output not in inner.layout.outputs:
             raise NmaError(f"output {output!r} is not one of the model's outputs {sorted(inner.layout.outputs)}")
         if excitation not in self.EXCITATIONS:
@@ -86,6 +85,12 @@ class ModalProblem(Problem):
         self.static = np.zeros(self.nc)
         self._static_state()
         self.omega0, self.xi0, self.shape0, self.r_scale = self._linear_mode()
+
+    @staticmethod
+    def _check(inner: Problem) -> None:
+        if inner.hill_operators(1.0) is None:
+            raise NmaError("nonlinear modes need the mass operator of the problem (Hill's Delta2), which this "
+                           "method does not have: use full order, a ROM or the exact condensation")
 
     # --- what the inner problem gives, over its unknowns now ------------------------------------
     def _inner_unknowns(self) -> np.ndarray:
@@ -167,6 +172,17 @@ class ModalProblem(Problem):
         """The inner problem's coefficients U = U_s + a x (m) of a point."""
         return self.static + 10.0 ** lam * x[:self.nc]
 
+    def _norm_rows(self, u) -> np.ndarray:
+        """The amplitude and phase rows over the inner unknowns u: o on the first harmonic's blocks."""
+        h, q = self.harmonics, self.layout.num_coords
+        row_c, row_s = np.zeros(self.nc), np.zeros(self.nc)
+        row_c[h.cos(1, q)], row_s[h.sin(1, q)] = self._out, self._out
+        return self.r_scale * np.vstack([row_c[u], row_s[u]])
+
+    def _norm_residual(self, x) -> np.ndarray:
+        h, q = self.harmonics, self.layout.num_coords
+        return self.r_scale * np.array([self._out @ x[h.cos(1, q)] - 1.0, self._out @ x[h.sin(1, q)]])
+
     def evaluate(self, x, lam, *, jacobian=True) -> Evaluation:
         a = 10.0 ** lam
         omega, xi = float(x[self.nc]), float(x[self.nc + 1])
@@ -176,16 +192,10 @@ class ModalProblem(Problem):
         xu = x[u]
         nmx = NM @ xu
         R_dyn = (ev.R + ops.Fh) / a - xi * omega * nmx
-        h, q = self.harmonics, self.layout.num_coords
-        o = self._out
-        c1, s1 = x[h.cos(1, q)], x[h.sin(1, q)]
-        R = np.concatenate([R_dyn, self.r_scale * np.array([o @ c1 - 1.0, o @ s1])])
+        R = np.concatenate([R_dyn, self._norm_residual(x)])
         if not jacobian:
             return Evaluation(R, None, None, ev.contact)
-        # the normalisation rows over the inner unknowns: o on the first harmonic's blocks
-        row_c, row_s = np.zeros(self.nc), np.zeros(self.nc)
-        row_c[h.cos(1, q)], row_s[h.sin(1, q)] = o, o
-        rows = self.r_scale * np.vstack([row_c[u], row_s[u]])
+        rows = self._norm_rows(u)
         col_w = ev.dR_dlam / a - xi * nmx
         col_xi = -omega * nmx
         dR = np.concatenate([LN10 * (ev.J @ xu - R_dyn - xi * omega * nmx), [0.0, 0.0]])
@@ -247,6 +257,82 @@ class ModalProblem(Problem):
         m = float(c @ (M @ c) + s @ (M @ s))
         f = complex((c + 1j * s) @ (Fh[qn:2 * qn] - 1j * Fh[2 * qn:3 * qn]))
         return m, f
+
+
+class CondensedModalProblem(ModalProblem):
+    """The EPMC in the exact condensation (hbm.condensed): the self-excitation -xi M u' enters each
+    excited harmonic's dynamic stiffness, Z_k = K - (k omega)^2 M + i k omega (D - xi M), so S_k
+    depends on xi (dS/dxi = S X^T (i k omega M) X S) and is exact, with the contact gaps and outputs
+    as the only unknowns.  The energy and the modal mass are those of the full field, u_k = T_k y_k
+    (T_k = Z_k^-1 C^T S_k), per harmonic.  The preload needs no static solve (f0 balances the
+    stuck contact at zero gap: U_s = 0; a static force is refused by the condensation itself)."""
+
+    @staticmethod
+    def _check(inner: Problem) -> None:
+        pass
+
+    def _inner_unknowns(self) -> np.ndarray:
+        return np.arange(self.nc)
+
+    def _static_state(self) -> None:
+        self.static = np.zeros(self.nc)
+
+    @property
+    def _orders(self) -> tuple:
+        return (1,) if self.excitation == "fundamental" else tuple(range(1, self.harmonics.H + 1))
+
+    def _linear_mode(self):
+        inner: CondensedProblem = self.inner
+        try:
+            omega, phi, xi = inner.linear_mode(self.mode)
+        except Exception as exc:
+            raise NmaError(f"mode {self.mode}: {exc}") from None
+        y = inner.C @ phi  # the gaps and outputs of the mode
+        at_out = float(self._out @ y)
+        if abs(at_out) < 1e-9 * np.abs(phi).max():
+            raise NmaError(f"output {self.output!r} does not move in mode {self.mode} (a node of the mode): "
+                           f"measure the amplitude at another output ([nma] output)")
+        q = self.layout.num_coords
+        x = np.zeros(self.nc)
+        x[self.harmonics.cos(1, q)] = y / at_out
+        r = float(omega**2 * np.abs(inner.full.M @ (phi / at_out)).max())
+        return omega, xi, x, max(r, 1e-300)
+
+    def evaluate(self, x, lam, *, jacobian=True) -> Evaluation:
+        a = 10.0 ** lam
+        omega, xi = float(x[self.nc]), float(x[self.nc + 1])
+        ev, dRxi = self.inner.evaluate_self_excited(a * x[:self.nc], omega, xi, self._orders, jacobian=jacobian)
+        R_dyn = ev.R / a
+        R = np.concatenate([R_dyn, self._norm_residual(x)])
+        if not jacobian:
+            return Evaluation(R, None, None, ev.contact)
+        xu = x[:self.nc]
+        J = np.block([[ev.J, (ev.dR_dlam / a)[:, None], (dRxi / a)[:, None]],
+                      [self._norm_rows(np.arange(self.nc)), np.zeros((2, 2))]])
+        dR = np.concatenate([LN10 * (ev.J @ xu - R_dyn), [0.0, 0.0]])
+        return Evaluation(R, J, dR, ev.contact)
+
+    def _fields(self, x) -> list[np.ndarray]:
+        return self.inner.harmonic_fields(x[:self.nc], float(x[self.nc]), float(x[self.nc + 1]), self._orders)
+
+    def energy_per_cycle(self, x: np.ndarray, lam: float) -> float:
+        M = self.inner.full.M
+        u = self._fields(x)
+        q = sum(k * k * float(np.real(np.conj(u[k]) @ (M @ u[k]))) for k in self._orders)
+        return float(x[self.nc + 1] * math.pi * x[self.nc] * 10.0 ** (2 * lam) * q)
+
+    def modal_terms(self, x: np.ndarray) -> tuple[float, complex]:
+        u1 = self._fields(x)[1]
+        full = self.inner.full
+        m = float(np.real(np.conj(u1) @ (full.M @ u1)))
+        return m, complex(np.conj(u1) @ (full.fc - 1j * full.fs))
+
+
+def modal_problem(inner: Problem, mode: int, output: str, *, excitation: str = "all") -> ModalProblem:
+    """The EPMC of a problem of the protocol: through its Hill operators, or inside the exact
+    condensation's dynamic stiffness."""
+    cls = CondensedModalProblem if isinstance(inner, CondensedProblem) else ModalProblem
+    return cls(inner, mode, output, excitation=excitation)
 
 
 @dataclass(frozen=True)
@@ -360,7 +446,7 @@ def compute_backbone(model: Structure | Reduction, options: NmaOptions, *, callb
     output = options.output or next(iter(inner.layout.outputs), None)
     if output is None:
         raise NmaError("the model has no output at which to measure the amplitude")
-    problem = ModalProblem(inner, options.mode, output, excitation=options.excitation)
+    problem = modal_problem(inner, options.mode, output, excitation=options.excitation)
     lam0, lam1 = math.log10(a0), math.log10(a1)
     sc = problem.scales(lam0, lam1)
     cont = options.continuation
@@ -442,7 +528,7 @@ def compute_backbone(model: Structure | Reduction, options: NmaOptions, *, callb
 
 
 def _solve_at(problem: ModalProblem, points, amplitudes, sc: Scales, cont: ContinuationOptions) -> dict:
-    """{amplitude: {"omega_rad_s", "zeta", "iterations"}} solved at each of ``amplitudes`` inside the
+    """{amplitude: {"omega_rad_s", "zeta", "energy_J", "modal_mass_kg", "iterations"}} solved at each of ``amplitudes`` inside the
     branch, by Newton at that amplitude from the nearest point (in its active set)."""
     out = {}
     lam = np.array([p.lam for p in points])
@@ -461,7 +547,8 @@ def _solve_at(problem: ModalProblem, points, amplitudes, sc: Scales, cont: Conti
             log.warning("nma: the mode at amplitude %.6g m did not converge: %s", a, exc)
             continue
         w, xi = float(x[problem.nc]), float(x[problem.nc + 1])
-        out[float(a)] = {"omega_rad_s": w, "zeta": xi / (2.0 * w), "iterations": int(it)}
+        out[float(a)] = {"omega_rad_s": w, "zeta": xi / (2.0 * w), "energy_J": problem.energy_per_cycle(x, la),
+                         "modal_mass_kg": problem.modal_terms(x)[0], "iterations": int(it)}
     return out
 
 
@@ -572,5 +659,5 @@ def compare_backbones(structure: Structure, specs, options: NmaOptions, *, refer
     return out
 
 
-__all__ = ["ModalProblem", "NmaOptions", "Backbone", "NmaError", "NmaIncomplete", "compute_backbone",
+__all__ = ["ModalProblem", "CondensedModalProblem", "modal_problem", "NmaOptions", "Backbone", "NmaError", "NmaIncomplete", "compute_backbone",
            "synthesize_frf", "BackboneResult", "compare_backbones"]

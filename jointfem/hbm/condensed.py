@@ -23,15 +23,30 @@ same omega costs only the AFT.  It equals the full-order HBM to round-off (teste
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 import scipy.sparse as sp
+import scipy.sparse.linalg as spla
 
 from ..harmonics import Harmonics
-from ..linalg import Factorized, LinAlgError
+from ..linalg import Factorized, LinAlgError, eigen
 from ..models.structure import Structure
 from .problem import (Evaluation, KeepsLastEvaluation, Layout, PointRecord, Problem, Scales, contact_records,
                       force_scale)
 from .residual import contact_pattern
+
+
+@dataclass(frozen=True)
+class _Harmonic:
+    """The operators of one harmonic at one (omega, xi), complex on (c - i s)."""
+
+    S: np.ndarray  # dynamic stiffness on the retained coordinates, N/m
+    dS: np.ndarray  # dS/domega
+    dSxi: np.ndarray  # dS/dxi (zero where xi takes no part)
+    ylin: np.ndarray  # the linear response to the scene's harmonic force (harmonic 1)
+    dylin: np.ndarray
+    T: np.ndarray | None  # Z^-1 C^T S: every DOF from the retained coordinates (None unless asked)
 
 
 class CondensedProblem(KeepsLastEvaluation, Problem):
@@ -54,7 +69,16 @@ class CondensedProblem(KeepsLastEvaluation, Problem):
         self.harmonics = harmonics
         G = sp.vstack([g.gap for g in structure.contacts]).tocsr()
         self.num_gaps = G.shape[0]
-        out_names = list(structure.outputs)
+        # an output that is a combination of gaps (a DOF with a pair to ground) is recovered from
+        # them; retained too, it would make the receptance singular
+        recovered = {}
+        for k, d in structure.outputs.items():
+            e = np.zeros(structure.num_dofs)
+            e[d] = 1.0
+            c = spla.lsqr(G.T, e, atol=1e-14, btol=1e-14, iter_lim=10 * self.num_gaps)[0]
+            if np.linalg.norm(G.T @ c - e) < 1e-10:
+                recovered[k] = c
+        out_names = [k for k in structure.outputs if k not in recovered]
         rows = [structure.outputs[k] for k in out_names]
         Q = sp.csr_matrix((np.ones(len(rows)), (np.arange(len(rows)), rows)), shape=(len(rows), structure.num_dofs))
         self.C = sp.vstack([G, Q]).tocsr()
@@ -64,12 +88,12 @@ class CondensedProblem(KeepsLastEvaluation, Problem):
         self._CT = self.C.T.toarray()
         self._F1 = structure.fc - 1j * structure.fs
         self._ops = None  # (omega, per-harmonic data)
-        S0, _, _, _ = self._harmonic(0, 0.0)
-        self._S0 = S0.real
+        self._H0 = self._harmonic(0, 0.0)
         # the retained coordinates: every gap component, then the outputs
         names = [f"gap.{i}" for i in range(self.num_gaps)] + out_names
-        self.layout = Layout(self.r, tuple(names), {k: self.num_gaps + j for j, k in enumerate(out_names)},
-                             structure.pair_names, structure.pair_coords)
+        outputs = {k: self.num_gaps + out_names.index(k) if k in out_names
+                   else np.concatenate([recovered[k], np.zeros(len(out_names))]) for k in structure.outputs}
+        self.layout = Layout(self.r, tuple(names), outputs, structure.pair_names, structure.pair_coords)
         # contact Jacobian pattern per group (as in HBMResidual), in the retained coordinates
         self._groups = []
         offset = 0
@@ -87,12 +111,17 @@ class CondensedProblem(KeepsLastEvaluation, Problem):
         return self._num_unknowns
 
     # ---- per-omega operators ------------------------------------------------------------
-    def _harmonic(self, k: int, omega: float):
-        """S_k, dS_k/domega, y_lin,k, dy_lin,k/domega (complex)."""
+    def _harmonic(self, k: int, omega: float, xi: float | None = None, *, recovery: bool = False) -> "_Harmonic":
+        """The operators of harmonic k at omega, with the EPMC's self-excitation -xi M u' in the
+        damping where xi (1/s) is given: Z_k = K - (k omega)^2 M + i k omega (D - xi M), and dS/dxi
+        (zero where xi is None).  ``recovery``: also T = Z^-1 C^T S, which maps the retained
+        coordinates to every DOF."""
         s = self.full
         kw = k * omega
-        Z = (s.K - kw**2 * s.M + 1j * kw * s.D) if k else s.K
-        lu = Factorized(Z, what=f"exact condensation: dynamic stiffness of harmonic {k} at omega = {omega:.6g} rad/s")
+        D = s.D - xi * s.M if xi else s.D  # xi None or 0: the structure's own damping
+        Z = (s.K - kw**2 * s.M + 1j * kw * D) if k else s.K
+        lu = Factorized(Z, what=f"exact condensation: dynamic stiffness of harmonic {k} at omega = {omega:.6g} rad/s"
+                        + (f", xi = {xi:.6g} 1/s" if xi is not None else ""))
         rhs = self._CT if k != 1 else np.column_stack([self._CT, self._F1])
         sol = lu.solve(rhs.astype(complex) if k else rhs)
         X = sol[:, :self.r]
@@ -102,25 +131,31 @@ class CondensedProblem(KeepsLastEvaluation, Problem):
         except np.linalg.LinAlgError as exc:
             raise LinAlgError(f"exact condensation: the receptance of harmonic {k} on the contact gaps is singular "
                               f"(two gaps or outputs are linearly dependent)") from exc
+        zero = np.zeros_like(S)
+        T = X @ S if recovery else None
         if k == 0:
-            return S, np.zeros_like(S), np.zeros(self.r), np.zeros(self.r)
-        dZ = -2.0 * k * k * omega * s.M + 1j * k * s.D
-        dR = -X.T @ (dZ @ X)
-        dS = -S @ dR @ S
+            return _Harmonic(S, zero, zero, np.zeros(self.r), np.zeros(self.r), T)
+        dZ = -2.0 * k * k * omega * s.M + 1j * k * D
+        dS = S @ (X.T @ (dZ @ X)) @ S  # -S (dR/domega) S, dR/domega = -X^T Z' X (Z complex symmetric)
+        dSxi = zero if xi is None else S @ (X.T @ ((-1j * kw) * (s.M @ X))) @ S  # dZ/dxi = -i k omega M
         if k == 1:
             u = sol[:, self.r]
             ylin = self.C @ u
             dylin = -X.T @ (dZ @ u)
         else:
             ylin = dylin = np.zeros(self.r, dtype=complex)
-        return S, dS, ylin, dylin
+        return _Harmonic(S, dS, dSxi, ylin, dylin, T)
 
-    def _operators(self, omega: float):
-        if self._ops is None or self._ops[0] != omega:
+    def _operators(self, omega: float, xi: float = 0.0, orders: tuple = ()) -> list[_Harmonic]:
+        """Every harmonic's operators at omega, with xi on the harmonics ``orders`` (cached for the
+        last (omega, xi, orders): a new U at the same point costs only the AFT)."""
+        key = (omega, xi, tuple(orders))
+        if self._ops is None or self._ops[0] != key:
             H = self.harmonics.H
-            data = [(self._S0, np.zeros_like(self._S0), np.zeros(self.r), np.zeros(self.r))]
-            data += [self._harmonic(k, omega) for k in range(1, H + 1)]
-            self._ops = (omega, data)
+            modal = bool(orders)
+            data = [self._H0 if not modal else self._harmonic(0, 0.0, recovery=True)]
+            data += [self._harmonic(k, omega, xi if k in orders else None, recovery=modal) for k in range(1, H + 1)]
+            self._ops = (key, data)
         return self._ops[1]
 
     @staticmethod
@@ -130,27 +165,42 @@ class CondensedProblem(KeepsLastEvaluation, Problem):
 
     # ---- the problem protocol (jointfem.hbm.problem) -------------------------------------
     def _evaluate(self, U, omega, jacobian):
+        R, J, dR, _, contact = self._assemble(U, self._operators(float(omega)), jacobian, forced=True)
+        return Evaluation(R, J, dR, contact)
+
+    def evaluate_self_excited(self, U, omega: float, xi: float, orders: tuple, *, jacobian: bool = True):
+        """The EPMC's residual of the free structure (no harmonic force; the preload stays): the
+        linear part with -xi M u' on the harmonics ``orders``, plus the contact forces.  Returns
+        (Evaluation with dR/domega, dR/dxi)."""
+        R, J, dR, dRxi, contact = self._assemble(U, self._operators(float(omega), float(xi), tuple(orders)),
+                                                 jacobian, forced=False)
+        return Evaluation(R, J, dR, contact), dRxi
+
+    def _assemble(self, U, data, jacobian, *, forced: bool):
         h, r = self.harmonics, self.r
         nh = h.num_hc
-        data = self._operators(float(omega))
         Y = U.reshape(nh, r)
         R = np.zeros((nh, r))
         dR = np.zeros((nh, r))
+        dRxi = np.zeros((nh, r))
         J = np.zeros((nh * r, nh * r)) if jacobian else None
-        S0 = data[0][0]
+        S0 = data[0].S.real
         R[0] = S0 @ Y[0]
         if jacobian:
             J[:r, :r] = S0
         for k in range(1, h.H + 1):
-            S, dS, ylin, dylin = data[k]
+            op = data[k]
             c, s_ = h.block_cos(k), h.block_sin(k)
             Yk = Y[c] - 1j * Y[s_]
-            E = S @ (Yk - ylin)
+            ylin, dylin = (op.ylin, op.dylin) if forced else (0.0 * op.ylin, 0.0 * op.dylin)
+            E = op.S @ (Yk - ylin)
             R[c], R[s_] = E.real, -E.imag
-            dE = dS @ (Yk - ylin) - S @ dylin
+            dE = op.dS @ (Yk - ylin) - op.S @ dylin
             dR[c], dR[s_] = dE.real, -dE.imag
+            dE = op.dSxi @ Yk
+            dRxi[c], dRxi[s_] = dE.real, -dE.imag
             if jacobian:
-                blk = self._real_block(S)
+                blk = self._real_block(op.S)
                 J[np.ix_(np.r_[c * r:(c + 1) * r, s_ * r:(s_ + 1) * r],
                          np.r_[c * r:(c + 1) * r, s_ * r:(s_ + 1) * r])] = blk
         R = R.ravel()
@@ -162,12 +212,32 @@ class CondensedProblem(KeepsLastEvaluation, Problem):
             R[idx] += (res.F - f0).ravel()
             if jacobian:
                 J[rows_, cols_] += res.J.ravel()  # the pattern's (row, col) pairs are distinct
-        return Evaluation(R, J, dR.ravel() if jacobian else None, contact)
+        return R, J, dR.ravel() if jacobian else None, dRxi.ravel(), contact
+
+    def harmonic_fields(self, U, omega: float, xi: float, orders: tuple) -> list[np.ndarray]:
+        """The complex amplitude u_k = c_k - i s_k of every DOF for k = 0..H (u_0 real) of the
+        retained coordinates U solved by ``evaluate_self_excited``: u_k = Z_k^-1 C^T S_k y_k
+        (exact: the contact forces act on the gaps alone)."""
+        h, r = self.harmonics, self.r
+        data = self._operators(float(omega), float(xi), tuple(orders))
+        Y = U.reshape(h.num_hc, r)
+        out = [data[0].T.real @ Y[0]]
+        for k in range(1, h.H + 1):
+            out.append(data[k].T @ (Y[h.block_cos(k)] - 1j * Y[h.block_sin(k)]))
+        return out
+
+    def linear_mode(self, mode: int):
+        """The stuck linear mode ``mode`` of the full structure: (omega rad/s, phi mass-normalised
+        over every DOF, phi^T D phi)."""
+        s = self.full
+        w2, Phi = eigen(s.K_lin, s.M, mode, what="exact condensation: the stuck linear structure")
+        phi = Phi[:, mode - 1]
+        return float(np.sqrt(max(w2[mode - 1], 0.0))), phi, float(phi @ (s.D @ phi))
 
     def _stuck(self, omega):
         """Stuck linear response on the retained coordinates at harmonic 1 (complex)."""
-        S, _, ylin, _ = self._harmonic(1, omega)
-        return np.linalg.solve(S + self._Kc, S @ ylin)
+        op = self._harmonic(1, omega)
+        return np.linalg.solve(op.S + self._Kc, op.S @ op.ylin)
 
     def initial_guess(self, omega):
         """The stuck linear response on the retained coordinates."""
