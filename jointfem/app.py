@@ -714,6 +714,7 @@ def write_nma(solution: NmaSolution, scene: Scene, out: Path, *, method: str, ro
                                 states=bb.states, H=bb.harmonics.H, N=bb.harmonics.N, output=np.array(bb.output),
                                 num_dofs=q, output_names=np.array(names, dtype=str), **output_arrays(bb.outputs, q),
                                 **({"pair_coords": np.asarray(bb.pair_coords)} if bb.pair_coords is not None else {}),
+                                **({"pair_area_m2": np.asarray(bb.pair_areas)} if bb.pair_areas is not None else {}),
                                 pair_names=np.array(bb.pair_names, dtype=str),
                                 layout=np.array("harmonic-major: U[j*n + dof], j=0 const, 2k-1 cos k, 2k sin k"),
                                 **{k: np.asarray(v) for k, v in arr.items()})

@@ -70,6 +70,10 @@ def export_point(folder, *, point: str | None = "peak", omega: float | None = No
         pair_data = {"energy_J": data["pair_energy_J"][i], "tangential_amp_m": data["pair_tangential_amp_m"][i],
                      "peak_normal_N": data["pair_peak_normal_N"][i], "stick_share": share[:, 0],
                      "slip_share": share[:, 1], "separated_share": share[:, 2]}
+        if "pair_area_m2" in data:  # continua: per unit area too (independent of the mesh)
+            area = np.asarray(data["pair_area_m2"], float)
+            pair_data.update({"area_m2": area, "energy_per_area_J_m2": pair_data["energy_J"] / area,
+                              "peak_pressure_Pa": pair_data["peak_normal_N"] / area})
         mesh = meshio.Mesh(pts, [("vertex", np.arange(C.shape[0])[:, None])], point_data=pair_data)
         path = out / f"pairs_{i}.vtu"
         atomic_write(path, lambda p: meshio.write(p, mesh, file_format="vtu"))

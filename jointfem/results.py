@@ -161,7 +161,7 @@ def save_frf(frf: FrequencyResponse, out: Path, *, summary: dict) -> dict:
                 dof_names=np.array(frf.dof_names, dtype=str), pair_names=np.array(frf.pair_names, dtype=str),
                 output_names=np.array(names, dtype=str), **output_arrays(frf.outputs, frf.num_dofs),
                 state_names=np.array(STATE_NAMES), layout=np.array("harmonic-major: U[j*n + dof], j=0 const, 2k-1 cos k, 2k sin k"),
-                **({"pair_coords": np.asarray(frf.info["pair_coords"])} if "pair_coords" in frf.info else {}),
+                **({k: np.asarray(frf.info[k]) for k in ("pair_coords", "pair_area_m2") if k in frf.info}),
                 **{k: np.asarray(v) for k, v in frf.info.get("arrays", {}).items()})
 
     atomic_write(out / "branch.npz", write_npz)

@@ -167,6 +167,23 @@ def _plane(coords: np.ndarray):
     return c, vt[2], vt[0], vt[1], rank
 
 
+def per_pair_fields(data: dict, i: int) -> list[tuple[str, np.ndarray | None, str]]:
+    """(label, values per pair or None, colour map) of the dissipation, the tangential amplitude and
+    the peak normal load at point i: per unit area where the pairs' areas are known (continua:
+    J/m^2 and the peak contact pressure in Pa, which do not depend on the mesh), per pair otherwise."""
+    def get(key):
+        return np.asarray(data[key][i], float) if key in data else None
+
+    W, ta, pn = get("pair_energy_J"), get("pair_tangential_amp_m"), get("pair_peak_normal_N")
+    area = np.asarray(data["pair_area_m2"], float) if "pair_area_m2" in data else None
+    if area is not None and area.size and np.all(area > 0):
+        return [("dissipated energy per cycle per area [J/m^2]", None if W is None else W / area, "viridis"),
+                ("tangential amplitude [m]", ta, "plasma"),
+                ("peak contact pressure [Pa]", None if pn is None else pn / area, "cividis")]
+    return [("dissipated energy per cycle [J]", W, "viridis"), ("tangential amplitude [m]", ta, "plasma"),
+            ("peak normal force [N]", pn, "cividis")]
+
+
 def plot_interface(data: dict, i: int, path: Path, *, title: str = "", window=(1600, 800)) -> Picture:
     """Interface maps at branch point i: dominant state (legend), the share of the period stuck,
     slipping and separated, dissipated energy per cycle, tangential amplitude and peak normal
@@ -192,10 +209,7 @@ def plot_interface(data: dict, i: int, path: Path, *, title: str = "", window=(1
         ("share of the period stuck", frac[:, 0], "Blues"),
         ("share of the period slipping", frac[:, 1], "Oranges"),
         ("share of the period separated", frac[:, 2], "Reds"),
-        ("dissipated energy per cycle [J]", data["pair_energy_J"][i] if "pair_energy_J" in data else None, "viridis"),
-        ("tangential amplitude [m]", data["pair_tangential_amp_m"][i] if "pair_tangential_amp_m" in data else None,
-         "plasma"),
-        ("peak normal force [N]", data["pair_peak_normal_N"][i] if "pair_peak_normal_N" in data else None, "cividis"),
+        *per_pair_fields(data, i),
     ]
     span = np.ptp(coords, axis=0).max() or 1.0
     spacing = span / max(np.sqrt(P), 1.0)

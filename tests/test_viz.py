@@ -175,6 +175,14 @@ def test_paraview_export_holds_the_solved_fields(tmp_path):
     share = sum(pairs.point_data[k] for k in ("stick_share", "slip_share", "separated_share"))
     np.testing.assert_allclose(share, 1.0)
     assert pairs.points.shape == (b["pair_coords"].shape[0], 3)
+    # per unit area: the pairs' areas tile the 30 mm x 25 mm overlap, and at this stuck point every
+    # pair's normal load swings about its preload, p = 80 kPa times its area (the edge pairs have half
+    # the area and half the force: per pair 4.0 to 16.2 N, per area 82 to 98 kPa)
+    area = pairs.point_data["area_m2"]
+    assert area.sum() == pytest.approx(0.03 * 0.025, rel=1e-12)
+    assert pairs.point_data["peak_pressure_Pa"].min() >= 8.0e4
+    assert pairs.point_data["peak_pressure_Pa"].max() < 1.5e5
+    np.testing.assert_allclose(pairs.point_data["energy_per_area_J_m2"] * area, b["pair_energy_J"][3])
 
 
 def test_state_map_shows_each_share_not_the_dominant_state(tmp_path):

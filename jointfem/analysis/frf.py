@@ -223,6 +223,8 @@ def compute_frf(model: Structure | Reduction, options: SweepOptions, *,
         info["stability"] = "not computed: this problem has no Hill operators (the exact condensation)"
     if layout.pair_coords is not None:
         info["pair_coords"] = layout.pair_coords
+    if layout.pair_areas is not None:
+        info["pair_area_m2"] = layout.pair_areas
     info.update(problem.branch_info())
     if all(r.active is not None for r in records):
         # active internal variables per point (penalty ROM), in the order of the contact components

@@ -412,6 +412,7 @@ class Backbone:
     pair_names: tuple = ()
     info: dict = field(default_factory=dict)
     pair_coords: np.ndarray | None = None  # (pairs, 3) m, for the interface pictures
+    pair_areas: np.ndarray | None = None  # (pairs,) m^2, for the per-area quantities
 
     @property
     def zeta(self) -> np.ndarray:
@@ -521,7 +522,7 @@ def compute_backbone(model: Structure | Reduction, options: NmaOptions, *, callb
         info["warnings"] = warnings
     bb = Backbone(output, options.mode, 10.0 ** lam, X[:, nc], X[:, nc + 1], U,
                   np.array([r.states for r in recs], dtype=np.int8), h, dict(problem.layout.outputs),
-                  problem.layout.pair_names, info, problem.layout.pair_coords)
+                  problem.layout.pair_names, info, problem.layout.pair_coords, problem.layout.pair_areas)
     if stopped is not None:
         raise NmaIncomplete(info["stop_reason"], backbone=bb, points=points, interrupted=stopped.interrupted)
     return bb

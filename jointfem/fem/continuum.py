@@ -377,7 +377,7 @@ def create_continuum(spec: ContinuumSpec, comm=None, mesh: Mesh | None = None) -
     if pair_info:
         coords = mesh.coords[a]
         groups = (ContactGroup(pairs, gap_all[:, free].tocsr(), names=tuple(f"pair{p}" for p in range(P)),
-                               coords=coords),)
+                               coords=coords, areas=area),)
 
     def nearest(point, comp, what):
         p = np.zeros(3)

@@ -93,7 +93,8 @@ class CondensedProblem(KeepsLastEvaluation, Problem):
         names = [f"gap.{i}" for i in range(self.num_gaps)] + out_names
         outputs = {k: self.num_gaps + out_names.index(k) if k in out_names
                    else np.concatenate([recovered[k], np.zeros(len(out_names))]) for k in structure.outputs}
-        self.layout = Layout(self.r, tuple(names), outputs, structure.pair_names, structure.pair_coords)
+        self.layout = Layout(self.r, tuple(names), outputs, structure.pair_names, structure.pair_coords,
+                             structure.pair_areas)
         # contact Jacobian pattern per group (as in HBMResidual), in the retained coordinates
         self._groups = []
         offset = 0

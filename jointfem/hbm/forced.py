@@ -56,7 +56,7 @@ class ForcedProblem(Problem):
         self.hbm = HBMResidual(structure, harmonics)
         self._num_dynamic = None
         self.layout = Layout(structure.num_dofs, structure.dof_names, dict(structure.outputs),
-                             structure.pair_names, structure.pair_coords)
+                             structure.pair_names, structure.pair_coords, structure.pair_areas)
 
     @property
     def num_unknowns(self) -> int:

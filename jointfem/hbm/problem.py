@@ -100,7 +100,8 @@ class Layout:
     """What the solved coordinates are (per harmonic block), for results and pictures.
 
     num_coords: coordinates per harmonic block.  outputs: name -> coordinate index, or a recovery
-    row (num_coords,) from the coordinates.  pair_names, pair_coords: the physical pairs (P, 3 in m).
+    row (num_coords,) from the coordinates.  pair_names, pair_coords, pair_areas: the physical pairs
+    (positions (P, 3) in m, contact areas (P,) in m^2, None where unknown).
     """
 
     num_coords: int
@@ -108,6 +109,7 @@ class Layout:
     outputs: dict = field(default_factory=dict)
     pair_names: tuple = ()
     pair_coords: np.ndarray | None = None
+    pair_areas: np.ndarray | None = None
 
 
 class Problem(ABC):

@@ -19,12 +19,15 @@ class ContactGroup:
     pair p in its local frame (Jenkins: t1, [t2], [n]), m.
     names: a label per pair (for outputs and plots).
     coords: a reference position per pair, shape (P, 3), m (for plots).
+    areas: the contact area each pair stands for, shape (P,), m^2 (continua; for the per-area
+    quantities of the pictures and exports: pressure, energy per area).
     """
 
     pairs: ContactLaw
     gap: sp.csr_matrix
     names: tuple[str, ...] = ()
     coords: np.ndarray | None = None
+    areas: np.ndarray | None = None
     load: sp.csr_matrix | None = None  # L: the force enters the residual as L^T (f - f0); None means L = G
 
     def __post_init__(self):
@@ -109,6 +112,14 @@ class Structure:
         coords = [g.coords for g in self.contacts]
         if coords and all(c is not None for c in coords):
             return np.concatenate(coords)
+        return None
+
+    @property
+    def pair_areas(self) -> np.ndarray | None:
+        """Contact area per pair (num_pairs,), m^2; None unless every group has them."""
+        areas = [g.areas for g in self.contacts]
+        if areas and all(a is not None for a in areas):
+            return np.concatenate(areas)
         return None
 
     @property

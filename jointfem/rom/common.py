@@ -135,7 +135,8 @@ def project(structure: Structure, T: np.ndarray, method: str, *, M_override: np.
     Mr = pr(structure.M)
     check_basis(T, Mr.toarray(), f"{method} basis")
 
-    contacts = tuple(ContactGroup(g.pairs, sp.csr_matrix(g.gap @ T), names=g.names, coords=g.coords)
+    contacts = tuple(ContactGroup(g.pairs, sp.csr_matrix(g.gap @ T), names=g.names, coords=g.coords,
+                                  areas=g.areas)
                      for g in structure.contacts)
     outputs = {name: T[dof].copy() for name, dof in structure.outputs.items()}
     M = Mr if M_override is None else sp.csr_matrix(M_override)

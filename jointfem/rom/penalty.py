@@ -186,7 +186,7 @@ class PenaltyProblem(Problem, Adaptive):
         full = rom.full
         self.layout = Layout(self.q, tuple(f"penalty.{i}" for i in range(self.q)),
                              {nm: rom.T[dof].copy() for nm, dof in full.outputs.items()},
-                             full.pair_names, full.pair_coords)
+                             full.pair_names, full.pair_coords, full.pair_areas)
         self.mask = np.zeros(rom.num_comp, bool)
         self.history: list[np.ndarray] = []  # per accepted point: components that slipped/separated/p != 0
         self.friction_tol = friction_tol
