@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 import scipy.sparse as sp
 
-from .analysis.frf import Resume, SweepIncomplete, SweepOptions, compute_frf
+from .analysis.frf import Resume, SweepIncomplete, SweepOptions, compute_frf, create_problem
 from .continuation.arclength import ContinuationOptions, NewtonOptions
 from .defaults import default_samples
 from .harmonics import Harmonics
@@ -132,18 +132,77 @@ def sp_nnz(A) -> int:
     return int(A.nnz) if sp.issparse(A) else int(np.count_nonzero(A))
 
 
+def largest_harmonics(scene: Scene) -> Harmonics:
+    """The largest H (and its N) a run of the scene solves at: harmonics, or harmonics_max with
+    harmonics = "auto"."""
+    s = scene.solver
+    return Harmonics(s.harmonics_max if s.harmonics_auto else s.harmonics,
+                     s.samples if s.samples_given or not s.harmonics_auto else default_samples(s.harmonics_max))
+
+
 def check_resources(scene: Scene, structure: Structure) -> None:
     """Refuse, with one line and the estimate, a sweep whose arrays would not fit in half of this
     machine's memory (``--harmonics 100000`` asked for 298 GiB before it failed)."""
-    h = Harmonics(scene.solver.harmonics_max if scene.solver.harmonics_auto else scene.solver.harmonics,
-                  scene.solver.samples if scene.solver.samples_given or not scene.solver.harmonics_auto
-                  else default_samples(scene.solver.harmonics_max))
+    h = largest_harmonics(scene)
     need = memory_estimate(structure, h)
     total = _memory_total()
     if total and need > 0.5 * total:
         raise SceneError(scene.path, "solver.harmonics", h.H,
                          f"with N = {h.N} samples and {structure.num_dofs} DOFs a sweep needs at least "
                          f"{need / 2**30:.1f} GiB, more than half of this machine's {total / 2**30:.1f} GiB")
+
+
+PROBE_ABOVE_H = 15  # below this a Newton iteration costs at most seconds on the models jointfem builds
+
+
+def iteration_estimate(model, harmonics: Harmonics, omega: float, *, enough: float = 0.2) -> dict | None:
+    """Seconds of one Newton iteration (the residual with its Jacobian, then the linear solve) at
+    ``harmonics``, extrapolated from the same model at fewer harmonics: H = 1, 3, 7, 15, ... (N in
+    proportion) until one takes ``enough`` seconds, then t ~ (2H+1)^p with p from the last two
+    probes (clamped to [2, 4]; it grows with H, so this is an estimate from below).  None when H is
+    small enough to need none."""
+    import scipy.sparse.linalg as spla
+
+    if harmonics.H <= PROBE_ABOVE_H:
+        return None
+    ratio = harmonics.N / harmonics.num_hc
+    probes = []
+    Hp = 1
+    while Hp < harmonics.H:
+        h = Harmonics(Hp, max(2 * Hp + 1, int(round(ratio * (2 * Hp + 1)))))
+        problem = create_problem(model, h)
+        x = problem.initial_guess(omega)
+        t0 = time.perf_counter()
+        ev = problem.evaluate(x, omega, jacobian=True)
+        if sp.issparse(ev.J):
+            spla.splu(ev.J.tocsc())
+        else:
+            np.linalg.solve(np.asarray(ev.J), ev.R)
+        probes.append((h.num_hc, time.perf_counter() - t0))
+        if probes[-1][1] >= enough and len(probes) >= 2:
+            break
+        Hp = 2 * Hp + 1
+    (n1, t1), (n2, t2) = probes[-2], probes[-1]
+    p = float(np.clip(np.log(max(t2, 1e-9) / max(t1, 1e-9)) / np.log(n2 / n1), 2.0, 4.0))
+    return {"seconds": t2 * (harmonics.num_hc / n2) ** p, "probe_H": (n2 - 1) // 2, "probe_s": t2, "exponent": p}
+
+
+def check_time(scene: Scene, model, harmonics: Harmonics, omega: float) -> None:
+    """Refuse, with one line and the estimate, a run whose first point alone (three Newton
+    iterations or more) would pass the scene's time limit; say the estimate where an iteration
+    takes more than a second (``--harmonics 1000`` on the beam: about 2 h per iteration)."""
+    est = iteration_estimate(model, harmonics, omega)
+    if est is None:
+        return
+    what = (f"about {est['seconds']:.3g} s per Newton iteration at H = {harmonics.H}, N = {harmonics.N} (measured "
+            f"{est['probe_s']:.3g} s at H = {est['probe_H']}, scaled by (2H+1)^{est['exponent']:.1f})")
+    limit = scene.solver.time_limit
+    if 3 * est["seconds"] > limit:
+        raise SceneError(scene.path, "solver.harmonics", harmonics.H,
+                         f"{what}: the first point alone (3 iterations or more) would pass solver.time_limit = "
+                         f"{limit:g} s")
+    if est["seconds"] > 1.0:
+        log.warning("%s: %s; a sweep takes hundreds of iterations", scene.name, what)
 
 
 def _memory_total() -> float:
@@ -206,6 +265,7 @@ def solve_scene(scene: Scene, *, progress: bool = False, method: str = "full",
     rom = None if method == "full" else build_rom(structure, method, rom_options)
     t_build = time.perf_counter() - t0
     s = scene.solver
+    check_time(scene, structure if rom is None else rom, largest_harmonics(scene), s.omega_start)
     opts = sweep_options(scene, stability=stability)
     bar = None
     callback = None
@@ -645,6 +705,7 @@ def solve_nma(scene: Scene, *, method: str = "full", rom_options: RomOptions = R
     check_resources(scene, structure)
     rom = None if method == "full" else build_rom(structure, method, rom_options)
     t_build = time.perf_counter() - t0
+    check_time(scene, structure if rom is None else rom, opts.harmonics, scene.solver.omega_start)
     bar, callback = None, None
     if progress:
         from tqdm import tqdm

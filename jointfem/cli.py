@@ -118,6 +118,7 @@ def cmd_force(args) -> int:
     structure = create_structure(scene)
     app.check_resources(scene, structure)
     model = structure if args.method == "full" else build_rom(structure, args.method, options)
+    app.check_time(scene, model, Harmonics(scene.solver.harmonics, scene.solver.samples), args.omega)
     opts = app.sweep_options(scene, stability="off").continuation
     stopped = None
     try:

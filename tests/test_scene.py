@@ -122,6 +122,27 @@ def test_harmonics_beyond_memory_refused_with_the_estimate(tmp_path):
     assert not (tmp_path / "o").exists()
 
 
+def test_harmonics_beyond_the_time_limit_refused_with_the_estimate(tmp_path):
+    """--harmonics 1000 on the beam ran with no word for minutes: an iteration takes about 2 h there
+    (measured 84 s at H = 255, growing like (2H+1)^3.3).  Now one line with the estimate from probes
+    at fewer harmonics (1.3e3 s measured at H = 31), before the sweep; nothing written."""
+    r = subprocess.run([sys.executable, "-m", "jointfem", "frf", str(ROOT / "demos" / "beam2d.toml"),
+                        "--harmonics", "1000", "--set", "solver.time_limit=60", "--out", str(tmp_path / "o")],
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 2 and r.stderr.count("\n") == 1, r.stderr
+    assert "solver.harmonics = 1000" in r.stderr and "per Newton iteration" in r.stderr
+    assert "solver.time_limit = 60 s" in r.stderr
+    assert not (tmp_path / "o").exists()
+    # the SDOF oscillator at H = 1000 is cheap (a 2001-unknown dense system: seconds): not refused
+    from jointfem import app
+    from jointfem.harmonics import Harmonics
+    from jointfem.scene import create_structure
+    scene = load_scene(ROOT / "demos" / "sdof_jenkins.toml")
+    est = app.iteration_estimate(create_structure(scene), Harmonics(1000, 4004), scene.solver.omega_start)
+    assert est["probe_H"] < 1000 and 0 < est["seconds"] < 1000
+    app.check_time(scene, create_structure(scene), Harmonics(1000, 4004), scene.solver.omega_start)
+
+
 def test_mesh_file_is_relative_to_the_scene_file(tmp_path):
     text = (ROOT / "demos" / "lap3d.toml").read_text()
     (tmp_path / "sub").mkdir()
