@@ -2,7 +2,7 @@
 
 ROM_MODES = 20  # vibration modes of a ROM (--modes)
 ROM_TVD = 0  # trial-vector derivatives of a ROM (--tvd)
-COMPARE_METHODS = "cb,rubin,macneal,dcb,jim,tvd:20:3,penalty"  # jointfem compare's --methods
+COMPARE_METHODS = "cb,rubin,macneal,dcb,cc,tvd:20:3,penalty"  # jointfem compare's --methods
 
 
 def default_samples(harmonics: int) -> int:

@@ -15,9 +15,11 @@ substructure; the boundary DOFs of a substructure are those the joint touches.
   not rigid compatibility, so the assembled system is solved in primal form by Galerkin
   projection on this basis (Rixen's DCB would add the interface forces as Lagrange
   multipliers; with springs the forces follow from the gaps).
-* jim: CB whose boundary DOFs are replaced by the lowest characteristic interface modes of
-  the CB-reduced boundary matrices, joint stuck (Castanier et al.'s characteristic
-  constraint modes).
+* cc: CB whose boundary DOFs are replaced by the lowest characteristic interface modes of
+  the CB-reduced boundary matrices, joint stuck: the characteristic constraint modes of
+  Castanier, Tan and Pierre (AIAA J. 39, 2001).  It stands where the paper's Fig. 5 has a
+  "joint interface method" with half as many static modes as nonlinear DOFs; it was called
+  "jim" here before, a name it did not earn (issue 13).
 * tvd: global vibration modes of the stuck structure + POD-compressed trial-vector
   derivatives (derivatives of the modes with respect to each contact stiffness).
 
@@ -92,7 +94,7 @@ def _free_modes(sub: _Sub, num: int, method: str):
         raise RomError(str(exc)) from exc
     if w2.size and w2[0] <= 1e-8 * max(w2[-1], 1e-300):
         raise RomError(f"{method}: substructure {sub.id} has rigid-body modes (free-free): residual flexibility "
-                       f"needs supports; use cb, jim, tvd or penalty")
+                       f"needs supports; use cb, cc, tvd or penalty")
     return w2, Phi, lu
 
 
@@ -197,17 +199,17 @@ def dual_craig_bampton(structure: Structure, options: RomOptions) -> ReducedMode
     return project(structure, np.hstack([Tm, Ta]), "dcb", info={"modes": Tm.shape[1], "statics": Ta.shape[1]})
 
 
-def joint_interface_modes(structure: Structure, options: RomOptions) -> ReducedModel:
-    Tm, Ts = craig_bampton_basis(structure, options, "jim")
+def characteristic_constraint_modes(structure: Structure, options: RomOptions) -> ReducedModel:
+    Tm, Ts = craig_bampton_basis(structure, options, "cc")
     nb = Ts.shape[1]
     C, _ = joint_operator(structure)
     num = options.interface_modes if options.interface_modes is not None else max(1, nb // 2)
     if not 1 <= num <= nb:
-        raise RomError(f"jim: interface_modes = {num} must be in [1, {nb}] (the boundary DOFs)")
+        raise RomError(f"cc: interface_modes = {num} must be in [1, {nb}] (the boundary DOFs)")
     Kb = Ts.T @ (structure.K_lin @ Ts)
     Mb = Ts.T @ (structure.M @ Ts)
-    _, Q = eigen(Kb, Mb, num, what="jim: interface")
-    return project(structure, np.hstack([Tm, Ts @ Q]), "jim", info={"modes": Tm.shape[1], "statics": num})
+    _, Q = eigen(Kb, Mb, num, what="cc: interface")
+    return project(structure, np.hstack([Tm, Ts @ Q]), "cc", info={"modes": Tm.shape[1], "statics": num})
 
 
 def mode_derivatives(structure: Structure, Phi: np.ndarray, w2: np.ndarray) -> np.ndarray:

@@ -37,7 +37,7 @@ class RomOptions:
     # which TVDs: "eigen", exact eigenvector derivatives with respect to each contact stiffness;
     # "eq12", the paper's static modal derivatives (Eq. 12; tvd method only: docs/theory.md)
     tvd_kind: str = "eigen"
-    interface_modes: int | None = None  # JIM: characteristic interface modes (default: half the boundary DOFs)
+    interface_modes: int | None = None  # cc: characteristic constraint modes (default: half the boundary DOFs)
     release_after: int = 2  # penalty: converged points a pair must stay stuck before it leaves the active set
 
 

@@ -11,7 +11,7 @@ from .common import ExactModel, Reduction, RomError, RomOptions
 REDUCTORS = {
     "exact": lambda structure, options: ExactModel(structure),  # the exact condensation (hbm.condensed)
     "cb": cms.craig_bampton, "rubin": cms.rubin, "macneal": cms.macneal, "dcb": cms.dual_craig_bampton,
-    "jim": cms.joint_interface_modes, "tvd": cms.tvd_method, "penalty": penalty.PenaltyROM,
+    "cc": cms.characteristic_constraint_modes, "tvd": cms.tvd_method, "penalty": penalty.PenaltyROM,
 }
 METHODS = ("full", *REDUCTORS)  # "full": no reduction
 
