@@ -333,7 +333,8 @@ def _lumped(top: _Table) -> LumpedSpec:
                     t.fail("normal" if ax == normal else "tangential", ax, f"mass {nd!r} has no DOF {ax!r}")
         kt = t.number("kt", gt=0)
         kn = t.number("kn", gt=0) if normal is not None else t.number("kn", 0.0, ge=0)
-        jenkins.append(JenkinsSpec(ab[0], ab[1], tang, normal, kt, kn, t.number("mu", ge=0), t.number("N0", ge=0)))
+        jenkins.append(JenkinsSpec(ab[0], ab[1], tang, normal, kt, kn, t.number("mu", ge=0),
+                                   _normal_preload(t, normal is not None, kn)))
         t.done()
     cubic = links("cubic_spring", "k3", {"gt": 0})
     unilateral = []
@@ -360,6 +361,20 @@ def _lumped(top: _Table) -> LumpedSpec:
     out.done()
     return LumpedSpec(tuple(masses), springs, dampers, tuple(jenkins), tuple(forces), outputs, cubic,
                       tuple(unilateral))
+
+
+def _normal_preload(t: _Table, has_normal: bool, kn: float) -> float:
+    """A Jenkins table's N0 (N, >= 0), or, with ``gap`` (m), a pair open at rest: N = kn (g_n - gap),
+    that is N0 = -kn gap (JenkinsPairs)."""
+    N0 = t.number("N0", 0.0 if t.has("gap") else _REQUIRED, ge=0)
+    if not t.has("gap"):
+        return N0
+    gap = t.number("gap", ge=0)
+    if not has_normal:
+        t.fail("gap", gap, "an initial gap needs a normal axis (normal = ...) that can close it")
+    if N0 > 0 and gap > 0:
+        t.fail("gap", gap, f"a pair is either preloaded (N0 = {N0:g} N) or open by a gap, not both")
+    return -kn * gap if gap > 0 else N0
 
 
 def _matrices(top: _Table, path):
@@ -411,7 +426,7 @@ def _matrices(top: _Table, path):
         normal = dof_pair(tt, "normal", tt.raw("normal")) if tt.has("normal") else None
         kt = tt.number("kt", gt=0)
         kn = tt.number("kn", gt=0) if normal is not None else tt.number("kn", 0.0, ge=0)
-        jenkins.append(DofPairSpec(tang, normal, kt, kn, tt.number("mu", ge=0), tt.number("N0", ge=0)))
+        jenkins.append(DofPairSpec(tang, normal, kt, kn, tt.number("mu", ge=0), _normal_preload(tt, normal is not None, kn)))
         tt.done()
     forces = []
     for tt in top.tables("force"):

@@ -36,7 +36,7 @@ def _contact(u, w, Gt, Gn, has_n, kt, kn, mu, N0, f, w_new):
         for j in range(u.shape[0]):
             f[j] += Gt[p, j] * ft
             if has_n[p]:
-                f[j] += Gn[p, j] * (fn - N0[p])  # the static preload is balanced
+                f[j] += Gn[p, j] * (fn - max(N0[p], 0.0))  # the static preload is balanced (an open pair has none)
 
 
 @njit(cache=True)

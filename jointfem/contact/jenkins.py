@@ -62,7 +62,7 @@ class JenkinsPairs(ContactLaw):
     kt: np.ndarray  # tangential stiffness, N/m
     kn: np.ndarray  # normal stiffness, N/m (ignored when has_normal is False)
     mu: np.ndarray  # friction coefficient, -
-    N0: np.ndarray  # normal preload, N (compressive positive)
+    N0: np.ndarray  # normal preload, N (compressive positive); N0 = -kn g0 < 0: open by an initial gap g0 (m)
     num_tangential: int = 1
     has_normal: bool = False
     events: bool = False  # event-accurate AFT (_events.py) instead of the sampled law; one tangential direction
@@ -81,6 +81,8 @@ class JenkinsPairs(ContactLaw):
                 raise ValueError(f"JenkinsPairs.{name} has shape {a.shape}, expected ({P},)")
         if self.num_tangential not in (1, 2):
             raise ValueError(f"num_tangential must be 1 or 2, got {self.num_tangential!r}")
+        if np.any(self.N0 < 0) and not self.has_normal:
+            raise ValueError("JenkinsPairs: a negative N0 (an initial gap) needs a normal DOF (has_normal)")
         if self.events and self.num_tangential != 1:
             raise ValueError("the event-accurate AFT (aft = \"events\") has one tangential direction; "
                              f"these pairs have {self.num_tangential}")
@@ -102,19 +104,32 @@ class JenkinsPairs(ContactLaw):
         return d
 
     @property
+    def open(self) -> np.ndarray:
+        """Pairs open at rest: N0 < 0, an initial gap g0 = -N0 / kn that the motion must close."""
+        return self.N0 < 0
+
+    @property
+    def initial_gap(self) -> np.ndarray:
+        """g0 per pair, m: -N0 / kn for an open pair, 0 for a closed one."""
+        return np.where(self.open, -self.N0 / np.where(self.kn > 0, self.kn, 1.0), 0.0)
+
+    @property
     def preload(self) -> np.ndarray:
-        """Static force f0 of shape (P, m): zero tangential force and N0 normal force."""
+        """Static force f0 of shape (P, m): the force at rest, zero tangential force and N0 normal
+        force (zero for an open pair, which carries nothing until it closes)."""
         f0 = np.zeros((self.num_pairs, self.num_comp))
         if self.has_normal:
-            f0[:, -1] = self.N0
+            f0[:, -1] = np.maximum(self.N0, 0.0)
         return f0
 
     @property
     def stiffness(self) -> np.ndarray:
-        """Stuck stiffness per component, shape (P, m): kt (and kn)."""
+        """Stuck stiffness per component, shape (P, m): kt (and kn); zero for an open pair (the
+        linearisation at rest, where it carries no force)."""
         k = np.repeat(self.kt[:, None], self.num_comp, axis=1)
         if self.has_normal:
             k[:, -1] = self.kn
+        k[self.open] = 0.0
         return k
 
     def aft(self, G: np.ndarray, harmonics: Harmonics, *, jacobian: bool = True) -> ContactResult:

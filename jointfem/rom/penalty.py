@@ -73,6 +73,10 @@ class PenaltyROM(ReducedModel):
         V, sv = trial_vector_derivatives(structure, Phi, w2, options.tvd, kind=options.tvd_kind)
         G = sp.vstack([g.gap for g in structure.contacts]).tocsr()
         kc = np.concatenate([g.pairs.stiffness.ravel() for g in structure.contacts])
+        if np.any(kc <= 0):
+            raise RomError(f"penalty: {int(np.sum(kc <= 0))} contact components have no stuck stiffness (pairs open at "
+                           "rest by an initial gap, or a cubic spring): the penalty ROM's internal variables need a "
+                           "stuck spring; use cb, exact or full order")
         try:
             Psi = Factorized(Kl, what="penalty: K_lin").solve(G.T.toarray() * kc)  # (n, J)
         except LinAlgError as exc:

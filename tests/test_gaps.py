@@ -1,0 +1,132 @@
+"""Pairs open at rest by an initial gap g0 (issue 16, "Initial gaps"): N = kn (g_n - g0), that is
+N0 = -kn g0 < 0.  Such a pair carries nothing, and adds no stiffness to the linearisation, until
+the motion closes it.  Checked on the one-mass system of tests/test_extremes_systems.py (x on a
+spring k = 1 and the pair's kt = 1, z on kz = 3 and the pair's normal kn = 1):
+
+* below the closing amplitude the response is the linear FRF of the structure without the pair
+  (closed form);
+* above it, the HBM branch meets RK4 time integration of the same equations at its peak;
+* the scene key ``[[jenkins]] gap`` sets it, with one-line errors for what cannot be;
+* the penalty ROM, whose internal variables need a stuck spring, refuses it with one line.
+"""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from conftest import linear_amplitude
+from reference_timeint import steady_amplitudes
+
+from jointfem.analysis.frf import SweepOptions, compute_frf
+from jointfem.contact.jenkins import SEPARATED, SLIP, STICK
+from jointfem.harmonics import Harmonics
+from jointfem.models.lumped import ForceSpec, JenkinsSpec, LinkSpec, LumpedSpec, MassSpec, create_lumped
+from jointfem.rom import RomError, RomOptions, build_rom
+from jointfem.scene import SceneError, load_scene
+
+
+def xz(g0, Fx=0.3, Fz=0.8, *, kn=1.0, kz=3.0, mu=0.5, c=0.05):
+    return LumpedSpec(
+        masses=(MassSpec("m", 1.0, ("x", "z")),),
+        springs=(LinkSpec("m.x", "ground", 1.0), LinkSpec("m.z", "ground", kz)),
+        dampers=(LinkSpec("m.x", "ground", c), LinkSpec("m.z", "ground", c)),
+        jenkins=(JenkinsSpec("m", "ground", ("x",), "z", kt=1.0, kn=kn, mu=mu, N0=-kn * g0),),
+        forces=(ForceSpec("m.x", Fx), ForceSpec("m.z", Fz)), outputs=("m.x", "m.z"))
+
+
+def test_a_gap_the_motion_never_closes_leaves_the_linear_structure():
+    """g0 = 10 m against a z amplitude of at most 5.3 m (Fz / (c w) at kz's resonance): the pair
+    stays open all period, so x follows k = 1 and z follows kz = 3 exactly (the pair adds neither
+    force nor stiffness), and the stuck linearisation is the structure without the pair."""
+    s = create_lumped(xz(10.0))
+    assert np.allclose(s.K_lin.toarray(), np.diag([1.0, 3.0]))
+    frf = compute_frf(s, SweepOptions(0.5, 2.5, Harmonics(3, 64)))
+    assert (frf.states == SEPARATED).all()
+    np.testing.assert_allclose(frf.amplitude(0), linear_amplitude(frf.omega, 1.0, 0.3, c=0.05), rtol=1e-8)
+    np.testing.assert_allclose(frf.amplitude(1), linear_amplitude(frf.omega, 3.0, 0.8, c=0.05), rtol=1e-8)
+    assert frf.amplitude(1).max() < 10.0
+
+
+def test_a_gap_the_motion_closes_matches_time_integration():
+    """g0 = 1 m: near kz's resonance z swings past the gap, the pair closes for part of the period
+    (stuck and slipping; open 57 % of the period at least), and opens again.  At the peak of z the
+    HBM branch (H = 15) meets RK4 time integration of the same equations, the gap included
+    (tests/reference_timeint.py with N0 = -kn g0): measured 2.8e-5 in x and 1.2e-6 in z; 1e-3 allows
+    for the integrator's first-order error at each switch."""
+    frf = compute_frf(create_lumped(xz(1.0)), SweepOptions(0.8, 2.4, Harmonics(15, 512)))
+    sep = (frf.states == SEPARATED).mean(axis=(1, 2))
+    assert sep.max() == 1.0 and sep.min() < 0.9  # open at the ends of the range, closing near resonance
+    assert (frf.states == STICK).any() and (frf.states == SLIP).any()
+    i = int(np.argmax(frf.amplitude(1)))
+    w = float(frf.omega[i])
+    system = dict(M=np.eye(2), K=np.diag([1.0, 3.0]), D=np.diag([0.05, 0.05]), fc=[0.3, 0.8], fs=[0.0, 0.0],
+                  Gt=[[1.0, 0.0]], Gn=[[0.0, 1.0]], has_n=[True], kt=[1.0], kn=[1.0], mu=[0.5], N0=[-1.0])
+    ti, drift = steady_amplitudes(system, [w], periods=300, steps=4000)
+    assert drift[0] < 1e-3
+    for dof in (0, 1):
+        assert frf.half_peak_to_peak(dof)[i] == pytest.approx(ti[0, dof], rel=1e-3)
+
+
+def test_penalty_rom_refuses_an_open_pair():
+    with pytest.raises(RomError, match="no stuck stiffness"):
+        build_rom(create_lumped(xz(1.0)), "penalty", RomOptions(modes=2))
+
+
+SCENE = """
+kind = "lumped"
+[solver]
+omega_range = [0.8, 2.4]
+[[mass]]
+name = "m"
+m = 1.0
+dofs = ["x", "z"]
+[[spring]]
+between = ["m.x", "ground"]
+k = 1.0
+[[spring]]
+between = ["m.z", "ground"]
+k = 3.0
+[[damper]]
+between = ["m.x", "ground"]
+c = 0.05
+[[damper]]
+between = ["m.z", "ground"]
+c = 0.05
+[[jenkins]]
+between = ["m", "ground"]
+tangential = ["x"]
+normal = "z"
+kt = 1.0
+kn = 2.0
+mu = 0.5
+{extra}
+[[force]]
+dof = "m.z"
+amplitude = 0.8
+
+[output]
+dofs = ["m.x", "m.z"]
+"""
+
+
+def test_scene_gap_key(tmp_path):
+    p = tmp_path / "gap.toml"
+    p.write_text(SCENE.format(extra="gap = 0.25"))
+    from jointfem.scene import create_structure
+    pairs = create_structure(load_scene(p)).contacts[0].pairs
+    assert pairs.N0[0] == pytest.approx(-0.5) and pairs.initial_gap[0] == pytest.approx(0.25)
+
+
+@pytest.mark.parametrize("extra, why", [("gap = 0.25\nN0 = 1.0", "either preloaded"), ("gap = -0.1", ">= 0")])
+def test_scene_gap_errors(tmp_path, extra, why):
+    p = tmp_path / "gap.toml"
+    p.write_text(SCENE.format(extra=extra))
+    with pytest.raises(SceneError, match=r"jenkins\[0\]\.gap") as exc:
+        load_scene(p)
+    assert why in str(exc.value)
+
+
+def test_scene_gap_needs_a_normal_axis(tmp_path):
+    p = tmp_path / "gap.toml"
+    p.write_text(SCENE.format(extra="gap = 0.25").replace('normal = "z"\n', ""))
+    with pytest.raises(SceneError, match=r"jenkins\[0\]\.gap = 0\.25: an initial gap needs a normal axis"):
+        load_scene(p)
