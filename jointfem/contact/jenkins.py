@@ -281,14 +281,20 @@ def compute_aft_events(pairs: JenkinsPairs, G: np.ndarray, harmonics: Harmonics,
                            f"{max_iter} periods (event-accurate AFT); worst: pair {bad}, relative change "
                            f"{res[bad, 2]:.3e} > {rtol:.1e}")
     # the stuck spring f0 + Kc g exactly (the kernel integrated the departure from it), so that a
-    # pair stuck all period is exactly linear, as with the sampled law
-    F = F.transpose(1, 0, 2) + pairs.stiffness[None] * G
-    F[0] += pairs.preload
+    # pair stuck all period is exactly linear, as with the sampled law.  The kernel's spring is the
+    # law's own (kt, kn and N0 as given, an open pair's negative N0 too), not the linearisation's
+    # (pairs.stiffness and pairs.preload are zero for a pair open at rest)
+    Kc = np.repeat(pairs.kt[:, None], m, axis=1)
+    f0 = np.zeros((P, m))
+    if pairs.has_normal:
+        Kc[:, -1], f0[:, -1] = pairs.kn, pairs.N0
+    F = F.transpose(1, 0, 2) + Kc[None] * G
+    F[0] += f0
     Jr = None
     if jacobian:
         Jr = J.reshape(P, num_hc, m, num_hc, m)
         for a in range(m):
-            Jr[:, np.arange(num_hc), a, np.arange(num_hc), a] += pairs.stiffness[:, a, None]
+            Jr[:, np.arange(num_hc), a, np.arange(num_hc), a] += Kc[:, a, None]
     return ContactResult(np.ascontiguousarray(F), Jr, f_t, g_t, state_t, res[:, :1].copy())
 
 
