@@ -28,6 +28,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..contact.jenkins import JenkinsPairs
+from ..linalg import LinAlgError
 from ..models.structure import ContactGroup, Structure
 from . import compat
 from . import geometry as geo
@@ -75,6 +76,10 @@ class ContinuumSpec:
     pressure: float = 0.0  # Pa, uniform preload over the contact surface
     bolts: tuple[Bolt, ...] = ()
     patches_only: bool = False  # only the nodes under a bolt patch are contact pairs
+    # "uniform": N0 from the pressure and the bolt patches on the interface; "static": the bolts load
+    # the outer faces under their washers (radius) and a static contact solve gives N0 per pair and
+    # the gaps of the pairs it leaves open (models.preload)
+    preload: str = "uniform"
     rayleigh_alpha: float = 0.0  # 1/s
     rayleigh_beta: float = 0.0  # s
     force_at: tuple[float, ...] = (0.15, 0.0, 0.0125)  # m, the force acts at the nearest node
@@ -326,6 +331,45 @@ def frames(normal: np.ndarray, dim: int) -> np.ndarray:
     return np.stack([t1, t2, n], axis=1)
 
 
+def washer_loads(mesh: Mesh, spec: ContinuumSpec) -> np.ndarray:
+    """The bolts' forces on the outer faces (all DOFs, N): each bolt pushes the face of A opposite
+    the joint (its extreme along the joint normal) towards B, and B's towards A, by ``force`` N,
+    shared equally by the face nodes within ``radius`` of its axis (the washer)."""
+    d = mesh.dim
+    a_nodes = mesh.contact[0]
+    n = mesh.normal[a_nodes].sum(axis=0)
+    n = n / np.linalg.norm(n)  # A's outward normal on the joint: from A to B
+    F = np.zeros(d * mesh.coords.shape[0])
+    h = 1e-9 * mesh.extent
+    for k, bolt in enumerate(spec.bolts):
+        for sub, sign in ((0, 1.0), (1, -1.0)):
+            nodes = np.flatnonzero(mesh.sub == sub)
+            y = mesh.coords[nodes] @ n
+            face = nodes[np.abs(y - (y.min() if sub == 0 else y.max())) <= h]
+            r = np.hypot(mesh.coords[face, 0] - bolt.x, mesh.coords[face, 2] - bolt.z if d == 3 else 0.0)
+            under = face[r <= bolt.radius]
+            if not under.size:
+                raise ContinuumError(f"{spec.source}: bolt {k} at x = {bolt.x}, z = {bolt.z} m with radius "
+                                     f"{bolt.radius} m covers no node of the outer face of {'AB'[sub]}")
+            for i in range(d):
+                np.add.at(F, d * under + i, sign * bolt.force * n[i] / under.size)
+    return F
+
+
+def static_preload(mesh: Mesh, spec: ContinuumSpec, K, G, free, kt, kn):
+    """The static contact state under the bolts' washer loads (models.preload)."""
+    from ..models.preload import solve_static_contact
+
+    F = washer_loads(mesh, spec)
+    if mesh.clamped.size and np.abs(F[np.setdiff1d(np.arange(F.size), free)]).max(initial=0.0) > 0:
+        raise ContinuumError(f"{spec.source}: a bolt's washer covers a clamped node")
+    try:
+        return solve_static_contact(K, G, kt, kn, F[free], num_tangential=mesh.dim - 1,
+                                    what=f"{spec.source}: static preload")
+    except LinAlgError as exc:
+        raise ContinuumError(f"{exc} (a body held by the joint alone needs the joint closed under the bolts)") from None
+
+
 def create_continuum(spec: ContinuumSpec, comm=None, mesh: Mesh | None = None) -> Structure:
     """The jointed continuum as a Structure (clamped DOFs eliminated), replicated on every rank."""
     mesh = mesh or build_mesh(spec, comm)
@@ -345,7 +389,7 @@ def create_continuum(spec: ContinuumSpec, comm=None, mesh: Mesh | None = None) -
         xz = mesh.coords[a][:, [0, 2]]
         N0 = spec.pressure * area
         under = np.zeros(a.size, dtype=bool)
-        for k, bolt in enumerate(spec.bolts):
+        for k, bolt in enumerate(spec.bolts if spec.preload == "uniform" else ()):
             inside = np.hypot(xz[:, 0] - bolt.x, xz[:, 1] - bolt.z) <= bolt.radius
             if not inside.any():
                 raise ContinuumError(f"{spec.source}: bolt {k} at x = {bolt.x}, z = {bolt.z} m with radius "
@@ -353,6 +397,8 @@ def create_continuum(spec: ContinuumSpec, comm=None, mesh: Mesh | None = None) -
             N0 = N0 + bolt.force * inside * area / area[inside].sum()
             under |= inside
         keep = under if spec.patches_only else np.ones(a.size, dtype=bool)
+        if spec.preload == "static":
+            N0 = np.zeros(a.size)  # from the static solve below
         a, b, area, N0 = a[keep], b[keep], area[keep], N0[keep]
         total = area.sum()
         kt = spec.kt * area + spec.kt_total * area / total
@@ -364,11 +410,24 @@ def create_continuum(spec: ContinuumSpec, comm=None, mesh: Mesh | None = None) -
         cols = np.broadcast_to(both[:, None, :], (P, m, 2 * d)).ravel()
         vals = np.concatenate([R, -R], axis=2).ravel()  # row (p, i): R[p, i] on A's DOFs, -R[p, i] on B's
         gap_all = sp.csr_matrix((vals, (rows, cols)), shape=(P * m, n_all))
-        pairs = JenkinsPairs(kt=kt, kn=kn, mu=np.full(P, spec.mu), N0=N0, num_tangential=d - 1, has_normal=True)
-        pair_info = {"num_pairs": int(P), "contact_area_m2": float(total), "preload_N": float(N0.sum())}
     clamped_dofs = (d * mesh.clamped[:, None] + np.arange(d)[None, :]).ravel()
     free = np.setdiff1d(np.arange(n_all), clamped_dofs)
     K = mesh.K[free][:, free].tocsr()
+    if mesh.contact[0].size or mesh.contact[1].size:
+        pair_info = {}
+        if spec.preload == "static":
+            st = static_preload(mesh, spec, K, gap_all[:, free].tocsr(), free, kt, kn)
+            N0 = st.N0
+            use = st.tangential_use(np.full(P, spec.mu))
+            pair_info = {"preload": "static", "static_iterations": st.iterations, "pairs_closed": int(st.closed.sum()),
+                         "pairs_open": int((~st.closed).sum()), "bolt_force_N": float(sum(b.force for b in spec.bolts)),
+                         "contact_area_closed_m2": float(area[st.closed].sum()),
+                         "peak_pressure_Pa": float((N0 / area).max()),
+                         "largest_static_gap_m": float(max(-st.gaps[:, -1].min(), 0.0)),
+                         "static_tangential_use_max": float(use.max())}
+        pairs = JenkinsPairs(kt=kt, kn=kn, mu=np.full(P, spec.mu), N0=N0, num_tangential=d - 1, has_normal=True)
+        pair_info = {"num_pairs": int(P), "contact_area_m2": float(total), "preload_N": float(np.maximum(N0, 0).sum()),
+                     **pair_info}
     M = mesh.M[free][:, free].tocsr()
     node_of = free // d
     comp_of = free % d
