@@ -2,7 +2,7 @@
 PY := .venv/bin/python
 MPIRUN := mpirun $(if $(filter 0,$(shell id -u)),--allow-run-as-root) --oversubscribe
 
-.PHONY: setup demo test test-fast bench bench-corners bench-friction bench-nma paper validate clean
+.PHONY: setup demo test test-fast bench bench-corners bench-friction bench-nma bench-preload paper validate clean
 
 setup:
 	@bash tools/setup.sh
@@ -32,6 +32,10 @@ bench-friction: setup
 # also part of `make bench`)
 bench-nma: setup
 	$(PY) benchmarks/nma.py --out docs/benchmarks_nma.md
+
+# issue 16's static preload: the bolted lap joint's contact state against mesh refinement (about 1 min)
+bench-preload: setup
+	$(PY) benchmarks/preload.py --out docs/benchmarks_preload.md
 
 paper: setup
 	$(PY) demos/paper_figures.py --out docs
