@@ -154,7 +154,9 @@ class CondensedProblem(KeepsLastEvaluation, Problem):
         if self._ops is None or self._ops[0] != key:
             H = self.harmonics.H
             modal = bool(orders)
-            data = [self._H0 if not modal else self._harmonic(0, 0.0, recovery=True)]
+            if modal and self._H0.T is None:  # the static harmonic with its recovery, once
+                self._H0 = self._harmonic(0, 0.0, recovery=True)
+            data = [self._H0]
             data += [self._harmonic(k, omega, xi if k in orders else None, recovery=modal) for k in range(1, H + 1)]
             self._ops = (key, data)
         return self._ops[1]
