@@ -28,8 +28,8 @@ bench-friction: setup
 	$(PY) benchmarks/friction.py --out docs/benchmarks_friction.md
 
 # issue 15's nonlinear modes: SDOF closed form and harmonics, backbone against forced sweeps, the
-# beam and the 3D lap joint against full order and a converged penalty ROM (about 3 min on 2 cores;
-# also part of `make bench`)
+# beam against full order, the 3D lap joint against the exact condensation, and the dissipation of the
+# uniformly preloaded and the bolted lap joint (about 8 min on 2 cores; also part of `make bench`)
 bench-nma: setup
 	$(PY) benchmarks/nma.py --out docs/benchmarks_nma.md
 
