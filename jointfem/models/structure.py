@@ -106,21 +106,20 @@ class Structure:
         """A name per physical pair, in the order of the contact groups (``pair<i>`` where unnamed)."""
         return tuple(nm for g in self.contacts for nm in (g.names or [f"pair{i}" for i in range(g.pairs.num_pairs)]))
 
+    def _per_pair(self, attr: str) -> np.ndarray | None:
+        """A per-pair attribute of the contact groups, concatenated; None unless every group has it."""
+        parts = [getattr(g, attr) for g in self.contacts]
+        return np.concatenate(parts) if parts and all(x is not None for x in parts) else None
+
     @property
     def pair_coords(self) -> np.ndarray | None:
         """Reference position per pair (num_pairs, 3), m; None unless every group has them."""
-        coords = [g.coords for g in self.contacts]
-        if coords and all(c is not None for c in coords):
-            return np.concatenate(coords)
-        return None
+        return self._per_pair("coords")
 
     @property
     def pair_areas(self) -> np.ndarray | None:
         """Contact area per pair (num_pairs,), m^2; None unless every group has them."""
-        areas = [g.areas for g in self.contacts]
-        if areas and all(a is not None for a in areas):
-            return np.concatenate(areas)
-        return None
+        return self._per_pair("areas")
 
     @property
     def K_lin(self) -> sp.csr_matrix:
