@@ -135,6 +135,12 @@ class JenkinsPairs(ContactLaw):
     def aft(self, G: np.ndarray, harmonics: Harmonics, *, jacobian: bool = True) -> ContactResult:
         return compute_aft(self, G, harmonics, jacobian=jacobian)
 
+    def closed_at_rest(self) -> "JenkinsPairs":
+        """Open pairs (N0 < 0) closed at rest with no preload: their stuck springs kt, kn."""
+        return self if not self.open.any() else JenkinsPairs(
+            kt=self.kt, kn=self.kn, mu=self.mu, N0=np.maximum(self.N0, 0.0), num_tangential=self.num_tangential,
+            has_normal=self.has_normal, events=self.events)
+
     def subset(self, index: np.ndarray) -> "JenkinsPairs":
         return JenkinsPairs(kt=self.kt[index], kn=self.kn[index], mu=self.mu[index], N0=self.N0[index],
                             num_tangential=self.num_tangential, has_normal=self.has_normal, events=self.events)
@@ -145,7 +151,8 @@ class JenkinsPairs(ContactLaw):
         separation flags the whole pair)."""
         P, m, nt = self.num_pairs, self.num_comp, self.num_tangential
         N = self.N0[None, :] + (self.kn[None, :] * g_t[:, :, -1] if self.has_normal else 0.0)
-        sep = (N < -tol * np.maximum(self.N0, 1e-300)).any(axis=0)
+        # an open pair is never its linear spring (it has none: the penalty ROM keeps it active)
+        sep = (N < -tol * np.maximum(self.N0, 1e-300)).any(axis=0) | self.open
         t = self.kt[None, :] * np.linalg.norm(g_t[:, :, :nt], axis=2)
         slip = (t > self.mu * np.maximum(N, 0.0) + tol * np.maximum(self.mu * self.N0, 1e-300)).any(axis=0)
         out = np.zeros((P, m), bool)
@@ -159,7 +166,7 @@ class JenkinsPairs(ContactLaw):
         separates keeps its normal component too."""
         nt = self.num_tangential
         slip = np.any(result.state_t == SLIP, axis=0)
-        sep = np.any(result.state_t == SEPARATED, axis=0)
+        sep = np.any(result.state_t == SEPARATED, axis=0) | self.open
         out = np.zeros((self.num_pairs, self.num_comp), bool)
         out[slip | sep, :nt] = True
         if self.has_normal:

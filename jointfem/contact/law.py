@@ -113,6 +113,11 @@ class ContactLaw(ABC):
         (friction), so that it can bound an undamped resonance.  None by default."""
         return np.zeros((self.num_pairs, self.num_comp), bool)
 
+    def closed_at_rest(self) -> "ContactLaw":
+        """The same law with every pair closed at rest: what a reduction's basis may take for a pair
+        that the motion has yet to close (JenkinsPairs: N0 >= 0).  The law itself by default."""
+        return self
+
     def linear_summary(self, g_t: np.ndarray) -> np.ndarray:
         """``summary`` of pairs held by the linearised law f = f0 + Kc g."""
         return self.summary(self.preload[None] + self.stiffness[None] * g_t, g_t)

@@ -28,7 +28,7 @@ the step is redone (continuation's ``adapt`` hook).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import scipy.sparse as sp
@@ -61,6 +61,12 @@ class PenaltyROM(ReducedModel):
             raise RomError("penalty: the model has no contact pairs")
         self.options = options
         n = structure.num_dofs
+        # a pair open at rest (an initial gap, N0 < 0) has no stuck stiffness, but the augmented
+        # system is exact for any Kc > 0: its basis and Kc take the pair as if closed at rest, and
+        # the pair stays active (JenkinsPairs.linear_breaks), so its p carries its real force
+        physical = structure
+        structure = replace(structure, contacts=tuple(replace(g, pairs=g.pairs.closed_at_rest())
+                                                      for g in structure.contacts))
         Kl = structure.K_lin
         w2, Phi = eigen(Kl, structure.M, options.modes, what="penalty: stuck structure")
         check_modes(Phi, structure.M, "penalty: the stuck vibration modes")
@@ -74,9 +80,9 @@ class PenaltyROM(ReducedModel):
         G = sp.vstack([g.gap for g in structure.contacts]).tocsr()
         kc = np.concatenate([g.pairs.stiffness.ravel() for g in structure.contacts])
         if np.any(kc <= 0):
-            raise RomError(f"penalty: {int(np.sum(kc <= 0))} contact components have no stuck stiffness (pairs open at "
-                           "rest by an initial gap, or a cubic spring): the penalty ROM's internal variables need a "
-                           "stuck spring; use cb, exact or full order")
+            raise RomError(f"penalty: {int(np.sum(kc <= 0))} contact components have no stuck stiffness (a cubic "
+                           "spring): the penalty ROM's internal variables need a stuck spring; use tvd, cb, exact or "
+                           "full order")
         try:
             Psi = Factorized(Kl, what="penalty: K_lin").solve(G.T.toarray() * kc)  # (n, J)
         except LinAlgError as exc:
@@ -95,11 +101,11 @@ class PenaltyROM(ReducedModel):
         self.D = Tu.T @ (structure.D @ Tu)
         self.kc = kc
         self.groups, first = [], 0
-        for g in structure.contacts:
+        for g in physical.contacts:  # the laws as they are (open pairs open)
             rows = g.pairs.num_pairs * g.pairs.num_comp
             self.groups.append(_Group(g, first, GT[first:first + rows]))
             first += rows
-        self.full = structure
+        self.full = physical
         self.T = Tu
         self._cache: dict[bytes, Structure] = {}
         stuck = self.structure_for(np.zeros(kc.size, bool))
