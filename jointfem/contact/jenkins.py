@@ -113,22 +113,26 @@ class JenkinsPairs(ContactLaw):
         """g0 per pair, m: -N0 / kn for an open pair, 0 for a closed one."""
         return np.where(self.open, -self.N0 / np.where(self.kn > 0, self.kn, 1.0), 0.0)
 
+    def law_spring(self) -> tuple[np.ndarray, np.ndarray]:
+        """(Kc, f0), each (P, m): the law's own stuck spring f = f0 + Kc g, kt (and kn) and N0 as
+        given, an open pair's negative N0 too (what the event kernel integrates the departure from)."""
+        k = np.repeat(self.kt[:, None], self.num_comp, axis=1)
+        f0 = np.zeros((self.num_pairs, self.num_comp))
+        if self.has_normal:
+            k[:, -1], f0[:, -1] = self.kn, self.N0
+        return k, f0
+
     @property
     def preload(self) -> np.ndarray:
         """Static force f0 of shape (P, m): the force at rest, zero tangential force and N0 normal
         force (zero for an open pair, which carries nothing until it closes)."""
-        f0 = np.zeros((self.num_pairs, self.num_comp))
-        if self.has_normal:
-            f0[:, -1] = np.maximum(self.N0, 0.0)
-        return f0
+        return np.maximum(self.law_spring()[1], 0.0)
 
     @property
     def stiffness(self) -> np.ndarray:
         """Stuck stiffness per component, shape (P, m): kt (and kn); zero for an open pair (the
         linearisation at rest, where it carries no force)."""
-        k = np.repeat(self.kt[:, None], self.num_comp, axis=1)
-        if self.has_normal:
-            k[:, -1] = self.kn
+        k = self.law_spring()[0]
         k[self.open] = 0.0
         return k
 
@@ -291,10 +295,7 @@ def compute_aft_events(pairs: JenkinsPairs, G: np.ndarray, harmonics: Harmonics,
     # pair stuck all period is exactly linear, as with the sampled law.  The kernel's spring is the
     # law's own (kt, kn and N0 as given, an open pair's negative N0 too), not the linearisation's
     # (pairs.stiffness and pairs.preload are zero for a pair open at rest)
-    Kc = np.repeat(pairs.kt[:, None], m, axis=1)
-    f0 = np.zeros((P, m))
-    if pairs.has_normal:
-        Kc[:, -1], f0[:, -1] = pairs.kn, pairs.N0
+    Kc, f0 = pairs.law_spring()
     F = F.transpose(1, 0, 2) + Kc[None] * G
     F[0] += f0
     Jr = None
