@@ -158,3 +158,15 @@ def test_static_preload_under_mpi_equals_serial(tmp_path):
     np.testing.assert_allclose(b, a, rtol=1e-8)
     # the scene does leave pairs open (their gaps are what the two runs had to agree on)
     assert create_structure(load_scene(scene)).info["pairs_open"] > 0
+
+
+def test_a_washer_that_covers_no_node_is_one_error(tmp_path):
+    """A bolt whose washer holds no node of an outer face (radius 0.1 mm off the nodes) is named,
+    with its position and radius, before any solve."""
+    from jointfem.fem.continuum import ContinuumError
+
+    p = bolted(tmp_path)
+    p.write_text(p.read_text().replace("radius = 0.008", "radius = 0.0001").replace("x = 0.285", "x = 0.2811"))
+    with pytest.raises(ContinuumError, match=r"bolt 0 at x = 0\.2811, z = 0\.0125 m with radius 0\.0001 m covers no "
+                                             r"node of the outer face of A"):
+        create_structure(load_scene(p))
