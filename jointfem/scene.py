@@ -506,7 +506,7 @@ def _point(t: _Table, k: str, dim: int, box) -> tuple[float, ...]:
 
 def _continuum(top: _Table, kind: str, path):
     """[geometry], [mesh], [material], [contact], [damping], [force], [output] of a continuum scene."""
-    from .fem.continuum import GEOMETRIES, Bolt, ContinuumSpec
+    from .fem.continuum import GEOMETRIES, Bolt, ContinuumSpec, Support
 
     dim = 3 if kind == "continuum3d" else 2
     g = top.table("geometry")
@@ -622,7 +622,31 @@ def _continuum(top: _Table, kind: str, path):
     out.done()
     if not outputs:  # the driving point
         outputs = (("drive", force["force_at"], force["force_dir"]),)
-    return ContinuumSpec(**geo, **mesh, **material, **contact, **damping, **force, outputs=outputs, source=str(path))
+    supports = tuple(_support(s, dim, box) for s in top.tables("support", required=False))
+    return ContinuumSpec(**geo, **mesh, **material, **contact, **damping, **force, outputs=outputs,
+                         supports=supports, source=str(path))
+
+
+def _support(s: _Table, dim: int, box):
+    """One [[support]]: a soft spring to ground on an outer face (a bungee cord)."""
+    from .fem.continuum import Support
+
+    at = _point(s, "at", dim, box)
+    lo, hi = box
+    tol = 1e-9 * max(hi)
+    if not any(abs(x - a) <= tol or abs(x - b) <= tol for x, a, b in zip(at, lo, hi)):
+        s.fail("at", list(at), f"must lie on an outer face of the model's bounding box {list(lo)} .. {list(hi)} m "
+                               f"(a support holds the surface)")
+    k = s.raw("stiffness")
+    k = [k] * dim if isinstance(k, (int, float)) and not isinstance(k, bool) else k
+    if (not isinstance(k, list) or len(k) != dim or not all(
+            isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) and 0 <= x <= 1e30 for x in k)
+            or not any(x > 0 for x in k)):
+        s.fail("stiffness", s.data["stiffness"], f"must be a number or {dim} numbers >= 0 (N/m along "
+                                                 f"{', '.join('xyz'[:dim])}), not all zero")
+    sup = Support(at, tuple(float(x) for x in k), s.number("radius", 0.0, ge=0))
+    s.done()
+    return sup
 
 
 def load_scene(path) -> Scene:
@@ -679,12 +703,12 @@ def check_solvable(scene: Scene) -> None:
     spec = scene.model
     if scene.kind == "lumped":
         _check_lumped_supports(scene)
-    if scene.kind.startswith("continuum") and spec.geometry != "bar" and not all(spec.clamped):
-        free = [s for s, c in zip("AB", spec.clamped) if not c]
+    if scene.kind.startswith("continuum") and spec.geometry != "bar" and not all(spec.supported()):
+        free = [s for s, c in zip("AB", spec.supported()) if not c]
         raise SceneError(scene.path, "geometry.clamped", [s for s, c in zip("AB", spec.clamped) if c],
                          f"substructure {' and '.join(free)} has no supports (rigid-body modes): a nonlinear "
-                         f"sweep needs both clamped; free-free models are for modal analysis "
-                         f"(jointfem.fem.continuum.create_continuum and jointfem.linalg.eigen with sigma < 0)")
+                         f"sweep needs each substructure clamped or held by a [[support]] (soft springs, such as "
+                         f"a free-free test's bungee cords)")
 
 
 def _check_lumped_supports(scene: Scene) -> None:

@@ -53,6 +53,17 @@ class Bolt:
 
 
 @dataclass(frozen=True)
+class Support:
+    """A soft support, such as a bungee cord: springs of ``stiffness`` N/m (along x, y, z) from
+    the outer face that ``at`` lies on to ground, shared equally by that face's nodes within
+    ``radius`` m of ``at`` (the nearest node if 0).  A patch of nodes also resists rotation."""
+
+    at: tuple[float, ...]
+    stiffness: tuple[float, ...]
+    radius: float = 0.0
+
+
+@dataclass(frozen=True)
 class ContinuumSpec:
     geometry: str = "lap"  # "lap" | "brb" | "bar"
     dim: int = 3
@@ -80,6 +91,7 @@ class ContinuumSpec:
     # the outer faces under their washers (radius) and a static contact solve gives N0 per pair and
     # the gaps of the pairs it leaves open (models.preload)
     preload: str = "uniform"
+    supports: tuple[Support, ...] = ()  # soft springs to ground (a free-free test article's bungees)
     rayleigh_alpha: float = 0.0  # 1/s
     rayleigh_beta: float = 0.0  # s
     force_at: tuple[float, ...] = (0.15, 0.0, 0.0125)  # m, the force acts at the nearest node
@@ -88,6 +100,18 @@ class ContinuumSpec:
     outputs: tuple[tuple[str, tuple[float, ...], str], ...] = ()  # (name, point, component)
     mesh_file: str | None = None  # write the gmsh mesh here (through meshio)
     source: str = "<continuum>"  # the scene file, for error messages
+
+    def supported(self) -> tuple[bool, bool]:
+        """Per substructure (A, B): is it clamped, or does a support lie on one of its blocks?"""
+        held = list(self.clamped)
+        tol = 1e-9 * self.layout().extent
+        for s in self.supports:
+            p = tuple(s.at) + (0.0,) * (3 - len(s.at))
+            for b in self.layout().boxes:
+                lo, hi = (b.x, b.y, b.z), (b.x + b.dx, b.y + b.dy, b.z + b.dz)
+                if all(a - tol <= c <= e + tol for c, a, e in zip(p[:self.dim], lo, hi)):
+                    held[b.sub] = True
+        return held[0], held[1]
 
     def layout(self) -> geo.Layout:
         if self.geometry == "lap":
@@ -356,6 +380,35 @@ def washer_loads(mesh: Mesh, spec: ContinuumSpec) -> np.ndarray:
     return F
 
 
+def support_springs(mesh: Mesh, spec: ContinuumSpec) -> np.ndarray:
+    """The supports' springs to ground on the diagonal of K (all DOFs, N/m)."""
+    d = mesh.dim
+    k = np.zeros(d * mesh.coords.shape[0])
+    lo, hi = mesh.coords.min(axis=0), mesh.coords.max(axis=0)
+    h = 1e-9 * mesh.extent
+    for j, s in enumerate(spec.supports):
+        at = np.zeros(3)
+        at[:len(s.at)] = s.at
+        faces = [(i, v) for i in range(d) for v in (lo[i], hi[i]) if abs(at[i] - v) <= h]
+        if not faces:
+            raise ContinuumError(f"{spec.source}: support {j} at {list(s.at)} m does not lie on an outer face of the "
+                                 f"model's box {lo[:d].tolist()} .. {hi[:d].tolist()} m")
+        i, v = faces[0]
+        face = np.flatnonzero(np.abs(mesh.coords[:, i] - v) <= h)
+        r = np.linalg.norm(mesh.coords[face] - at, axis=1)
+        nodes = face[r <= s.radius] if s.radius > 0 else face[[np.argmin(r)]]
+        if s.radius == 0 and r.min() > spec.size:
+            nodes = nodes[:0]
+        if not nodes.size:
+            raise ContinuumError(f"{spec.source}: support {j} at {list(s.at)} m with radius {s.radius} m covers "
+                                 f"no node of its face")
+        if np.isin(nodes, mesh.clamped).any():
+            raise ContinuumError(f"{spec.source}: support {j} at {list(s.at)} m lies on a clamped face")
+        for c in range(d):
+            np.add.at(k, d * nodes + c, s.stiffness[c] / nodes.size)
+    return k
+
+
 def static_preload(mesh: Mesh, spec: ContinuumSpec, K, G, free, kt, kn):
     """The static contact state under the bolts' washer loads (models.preload)."""
     from ..models.preload import solve_static_contact
@@ -413,6 +466,8 @@ def create_continuum(spec: ContinuumSpec, comm=None, mesh: Mesh | None = None) -
     clamped_dofs = (d * mesh.clamped[:, None] + np.arange(d)[None, :]).ravel()
     free = np.setdiff1d(np.arange(n_all), clamped_dofs)
     K = mesh.K[free][:, free].tocsr()
+    if spec.supports:
+        K = (K + sp.diags(support_springs(mesh, spec)[free])).tocsr()
     if mesh.contact[0].size or mesh.contact[1].size:
         if spec.preload == "static":
             st = static_preload(mesh, spec, K, gap_all[:, free].tocsr(), free, kt, kn)
@@ -455,7 +510,7 @@ def create_continuum(spec: ContinuumSpec, comm=None, mesh: Mesh | None = None) -
     timings = dict(mesh.timings, contact_s=time.perf_counter() - t0)
     info = {"kind": f"continuum{d}d", "geometry": spec.geometry, "free_dofs": int(free.size),
             "nodes": int(nn), "cells": int(mesh.cells), "degree": spec.degree, "timings": timings,
-            "supported": bool(mesh.clamped.size), "force_node": mesh.coords[fnode].tolist(), **pair_info,
+            "supported": bool(mesh.clamped.size or spec.supports), "force_node": mesh.coords[fnode].tolist(), **pair_info,
             # for pictures of the deformed shape (jointfem.viz): where each DOF sits and points
             "geometry": {"node_coords": mesh.coords, "dof_node": node_of, "dof_comp": comp_of}}
     return Structure(K=K, M=M, D=D, fc=fc, fs=np.zeros_like(fc), contacts=groups, dof_names=names,
