@@ -385,7 +385,7 @@ def remove_stale(out: Path, owned: tuple = OWNED) -> list[Path]:
     out = Path(out)
     if not (out / "summary.json").is_file():
         return []
-    gone = [p for pattern in owned for p in out.glob(pattern) if p.is_file()]
+    gone = sorted({p for pattern in owned for p in out.glob(pattern) if p.is_file()})  # patterns overlap
     for p in gone:
         p.unlink()
     return gone

@@ -327,3 +327,16 @@ def test_import_from_the_folder_above_a_clone_named_jointfem(tmp_path):
                        cwd=tmp_path, capture_output=True, text=True)
     assert r.returncode == 0, r.stderr
     assert r.stdout.strip().endswith("jointfem/__init__.py")
+
+
+def test_an_nma_run_into_a_sweeps_folder_clears_each_old_file_once(tmp_path):
+    """The sweep's and the backbone's own files overlap (branch.npz, summary.json, pictures): a
+    backbone written where a sweep was removes each old file once (before: it unlinked branch.npz
+    twice and failed after the whole computation)."""
+    from jointfem.app import NMA_OWNED, OWNED, remove_stale
+
+    for name in ("summary.json", "branch.npz", "frf.csv", "interface_3.png", "mine.txt"):
+        (tmp_path / name).write_text("x")
+    gone = remove_stale(tmp_path, NMA_OWNED + OWNED)
+    assert sorted(p.name for p in gone) == ["branch.npz", "frf.csv", "interface_3.png", "summary.json"]
+    assert [p.name for p in tmp_path.iterdir()] == ["mine.txt"]

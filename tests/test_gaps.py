@@ -169,3 +169,19 @@ def test_exact_condensation_and_a_galerkin_rom_take_an_open_pair():
     for method in ("exact", "tvd"):
         pk = compute_frf(build_rom(s, method, RomOptions(modes=2, tvd=0)), opts).info["peaks"]["m.z"]
         assert abs(pk.amplitude / ref.amplitude - 1) < 1e-8 and abs(pk.omega / ref.omega - 1) < 1e-8, method
+
+
+def test_penalty_rom_starts_with_its_open_pairs_removed():
+    """Before any point is solved, the penalty ROM's active set already holds the open pair, so its
+    linear model is the structure without the pair: the linear mode the nonlinear modes start from
+    is sqrt(k_x) = 1 and sqrt(k_z) = sqrt(3) rad/s (closed form), not the closed pair's sqrt(2) and
+    sqrt(3 + kn) (before: the first point and the reported linear mode were those of the pair
+    closed)."""
+    from jointfem.analysis.frf import create_problem
+    from jointfem.analysis.nma import modal_problem
+
+    s = create_lumped(xz(1.0))
+    problem = create_problem(build_rom(s, "penalty", RomOptions(modes=2)), Harmonics(3, 64))
+    assert problem.size == 4  # 2 modes + the open pair's 2 components
+    w = sorted(modal_problem(problem, k, "m.x" if k == 1 else "m.z").omega0 for k in (1, 2))
+    np.testing.assert_allclose(w, [1.0, np.sqrt(3.0)], rtol=1e-10)

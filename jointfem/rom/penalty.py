@@ -210,6 +210,10 @@ class PenaltyProblem(Problem, Adaptive):
                 self.pairs.append(_Pair(gi, p, gr.first + p * m + np.arange(m)))
         self.num_pairs = len(self.pairs)
         self.events = {"activated": 0, "released": 0, "redone_steps": 0}
+        # a pair open at rest is never its stuck spring: active from the start, so that the linear
+        # model (the first point, the nonlinear modes' linear mode) is the real one, not one in
+        # which the open pairs are closed
+        self.mask = self._linear_breaks(np.zeros(harmonics.num_hc * self.q))
 
     # --- evaluation ------------------------------------------------------------------------
     @property
