@@ -2,7 +2,7 @@
 PY := .venv/bin/python
 MPIRUN := mpirun $(if $(filter 0,$(shell id -u)),--allow-run-as-root) --oversubscribe
 
-.PHONY: setup demo test test-fast bench bench-corners bench-friction bench-nma bench-preload paper validate clean
+.PHONY: setup demo test test-fast bench bench-corners bench-friction bench-nma bench-preload brb paper validate clean
 
 setup:
 	@bash tools/setup.sh
@@ -17,6 +17,13 @@ test: setup
 bench: setup
 	$(PY) benchmarks/bench.py --out docs/benchmarks.md
 	$(PY) benchmarks/nma.py --out docs/benchmarks_nma.md
+	$(PY) demos/brb.py --out docs
+
+# issue 16's Brake-Reuss beam: free-free on its supports, the static preload of its three bolts, the
+# mode-1 backbone and the FRF at three levels, the penalty ROM against the exact condensation
+# (docs/brb.md; also part of `make bench`)
+brb: setup
+	$(PY) demos/brb.py --out docs
 
 # issue 14's sweeps at strong separation, each under a time budget (about 30 min on 2 cores)
 bench-corners: setup
@@ -33,7 +40,7 @@ bench-friction: setup
 bench-nma: setup
 	$(PY) benchmarks/nma.py --out docs/benchmarks_nma.md
 
-# issue 16's static preload: the bolted lap joint's contact state against mesh refinement (about 1 min)
+# issue 16's static preload: the bolted lap joint's and the BRB's contact states against mesh refinement (about 3 min)
 bench-preload: setup
 	$(PY) benchmarks/preload.py --out docs/benchmarks_preload.md
 
