@@ -53,7 +53,8 @@ def pct(cell: str) -> float:
     return float(cell.rstrip("%"))
 
 
-DEMOS = ["jointed_beam_levels.py", "paper_figures.py", "lap3d_nonlinear.py", "validation.py"]
+DEMOS = ["jointed_beam_levels.py", "paper_figures.py", "lap3d_nonlinear.py", "validation.py",
+         "brb.py"]  # brb.py: tests/test_brb.py
 
 
 def test_every_demo_has_a_test():
