@@ -208,7 +208,7 @@ def brb(lines, quick=False):
 def brb_swept(lines, quick=False):
     """A pointer: the swept BRB is its own run (make brb), too long for this one."""
     lines += ["## 5. The Brake-Reuss beam swept, beside the published data", "",
-              "docs/brb.md (`make brb`, demos/brb.py, about 45 minutes) takes demos/brb.toml: free-free on two soft "
+              "docs/brb.md (`make brb`, demos/brb.py, about 40 minutes) takes demos/brb.toml: free-free on two soft "
               "supports, the three bolts' preload (Porter & Brake's 12.0, 12.1 and 12.7 kN) through a static contact "
               "solve, 217 contact pairs.  It gives the static contact state, the stuck modes, the mode-1 backbone and "
               "the forced response at three levels with the penalty ROM, each checked against the exact "
