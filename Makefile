@@ -40,7 +40,7 @@ bench-friction: setup
 bench-nma: setup
 	$(PY) benchmarks/nma.py --out docs/benchmarks_nma.md
 
-# issue 16's static preload: the bolted lap joint's and the BRB's contact states against mesh refinement (about 3 min)
+# issue 16's static preload: the bolted lap joint's and the BRB's contact states against mesh refinement (about 1 min: 61 s measured)
 bench-preload: setup
 	$(PY) benchmarks/preload.py --out docs/benchmarks_preload.md
 

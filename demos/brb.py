@@ -38,7 +38,6 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from jointfem import app  # noqa: E402
-from jointfem.analysis.frf import create_problem  # noqa: E402
 from jointfem.analysis.nma import compute_backbone, modal_problem  # noqa: E402
 from jointfem.analysis.peaks import output_amplitude  # noqa: E402
 from jointfem.continuation.arclength import ConvergenceError, NewtonOptions, solve_newton  # noqa: E402
@@ -172,7 +171,7 @@ def stuck_modes(lines, structure):
 
 # ---- 3. the backbone -----------------------------------------------------------------------
 
-def backbone(lines, scene, structure, work: Path, amplitudes, img: Path):
+def backbone(lines, scene, structure, amplitudes, img: Path):
     opts = dataclasses.replace(app.nma_options(scene, mode=MODE), at=tuple(amplitudes))
     t0 = time.perf_counter()
     rom = build_rom(structure, "penalty", ROM)
@@ -462,7 +461,7 @@ def main(argv=None) -> int:
     f1, f_rb = stuck_modes(lines, structure)
     print(f"brb: {structure.num_pairs} pairs, equilibrium {eq:.1e}, mode 1 stuck {f1:.3f} Hz", file=sys.stderr,
           flush=True)
-    bb, bb_errs, _, _ = backbone(lines, scene, structure, work, (3e-5, 1e-4) if args.quick else AMPLITUDES, img)
+    bb, bb_errs, _, _ = backbone(lines, scene, structure, (3e-5, 1e-4) if args.quick else AMPLITUDES, img)
     rows, frf_errs = forced(lines, scene, work, LEVELS, img, sets)
     dw, da = harmonics_check(lines, scene, sets, LEVELS[1])
     published(lines, bb, f1)

@@ -506,7 +506,7 @@ def _point(t: _Table, k: str, dim: int, box) -> tuple[float, ...]:
 
 def _continuum(top: _Table, kind: str, path):
     """[geometry], [mesh], [material], [contact], [damping], [force], [output] of a continuum scene."""
-    from .fem.continuum import GEOMETRIES, Bolt, ContinuumSpec, Support
+    from .fem.continuum import GEOMETRIES, Bolt, ContinuumSpec
 
     dim = 3 if kind == "continuum3d" else 2
     g = top.table("geometry")
@@ -703,8 +703,9 @@ def check_solvable(scene: Scene) -> None:
     spec = scene.model
     if scene.kind == "lumped":
         _check_lumped_supports(scene)
-    if scene.kind.startswith("continuum") and spec.geometry != "bar" and not all(spec.supported()):
-        free = [s for s, c in zip("AB", spec.supported()) if not c]
+    held = spec.supported() if scene.kind.startswith("continuum") and spec.geometry != "bar" else (True, True)
+    if not all(held):
+        free = [s for s, c in zip("AB", held) if not c]
         raise SceneError(scene.path, "geometry.clamped", [s for s, c in zip("AB", spec.clamped) if c],
                          f"substructure {' and '.join(free)} has no supports (rigid-body modes): a nonlinear "
                          f"sweep needs each substructure clamped or held by a [[support]] (soft springs, such as "

@@ -104,10 +104,11 @@ class ContinuumSpec:
     def supported(self) -> tuple[bool, bool]:
         """Per substructure (A, B): is it clamped, or does a support lie on one of its blocks?"""
         held = list(self.clamped)
-        tol = 1e-9 * self.layout().extent
+        layout = self.layout()
+        tol = 1e-9 * layout.extent
         for s in self.supports:
             p = tuple(s.at) + (0.0,) * (3 - len(s.at))
-            for b in self.layout().boxes:
+            for b in layout.boxes:
                 lo, hi = (b.x, b.y, b.z), (b.x + b.dx, b.y + b.dy, b.z + b.dz)
                 if all(a - tol <= c <= e + tol for c, a, e in zip(p[:self.dim], lo, hi)):
                     held[b.sub] = True
@@ -396,9 +397,10 @@ def support_springs(mesh: Mesh, spec: ContinuumSpec) -> np.ndarray:
         i, v = faces[0]
         face = np.flatnonzero(np.abs(mesh.coords[:, i] - v) <= h)
         r = np.linalg.norm(mesh.coords[face] - at, axis=1)
-        nodes = face[r <= s.radius] if s.radius > 0 else face[[np.argmin(r)]]
-        if s.radius == 0 and r.min() > spec.size:
-            nodes = nodes[:0]
+        if s.radius > 0:
+            nodes = face[r <= s.radius]
+        else:  # the nearest node, if it lies within an element size
+            nodes = face[[np.argmin(r)]] if r.min() <= spec.size else face[:0]
         if not nodes.size:
             raise ContinuumError(f"{spec.source}: support {j} at {list(s.at)} m with radius {s.radius} m covers "
                                  f"no node of its face")
