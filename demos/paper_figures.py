@@ -254,11 +254,13 @@ modes of the stuck structure.  All stuck, the penalty ROM has no internal variab
 modal truncation of the stuck structure, and its first 9 frequencies are exact to round-off
 (the eigenvalues of the projection on exact eigenvectors), at the smallest size.  This agrees
 with the paper's Fig. 5 ("the proposed method achieves the best accuracy with the smallest
-reduction ratio").  Two rows stand in for the paper's methods without being them: `dcb` is
-Rixen's dual Craig–Bampton basis used in primal form (Galerkin, the interface forces follow from
-the gaps, no Lagrange multipliers), and `cc` (Castanier's characteristic constraint modes) stands
-where the paper has its "joint interface method" (JIM), with the same count of static modes, half
-the nonlinear DOFs (docs/theory.md, "Reduced-order models").
+reduction ratio").  `dcb` is Rixen's dual Craig–Bampton with the interface forces as unknowns:
+one Lagrange multiplier and one gap per joint connection (9 on the beam) beside the free modes,
+so its size is m + 18 (it was a primal Galerkin projection on Rixen's basis, m + 9, until issue
+13).  One row stands in for the paper's method without being it: `cc` (Castanier's
+characteristic constraint modes) stands where the paper has its "joint interface method" (JIM),
+with the same count of static modes, half the nonlinear DOFs (docs/theory.md, "Reduced-order
+models").
 
 ## Fig. 6 analogue: the nonlinear FRF with separation
 

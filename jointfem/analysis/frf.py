@@ -220,7 +220,7 @@ def compute_frf(model: Structure | Reduction, options: SweepOptions, *,
                              f"the automatic limit (a dense eigensolve of twice the unknowns per point; "
                              f"--stability on computes it)")
     else:
-        info["stability"] = "not computed: this problem has no Hill operators (the exact condensation)"
+        info["stability"] = f"not computed: {problem.no_stability or 'this problem has no Hill operators'}"
     if layout.pair_coords is not None:
         info["pair_coords"] = layout.pair_coords
     if layout.pair_areas is not None:

@@ -51,7 +51,9 @@ def floquet_exponents(J, d1, d2, num: int) -> np.ndarray:
 
 def max_real_part(problem: Problem, lam: float, evaluation: Evaluation) -> float | None:
     """The largest real part of the point's Floquet exponents (1/s), or None where the problem
-    offers no Hill operators."""
+    offers no Hill operators or says why its exponents are not the physical ones."""
+    if problem.no_stability is not None:
+        return None
     ops = problem.hill_operators(lam)
     if ops is None or evaluation.J is None:
         return None

@@ -56,6 +56,7 @@ class CondensedProblem(KeepsLastEvaluation, Problem):
     # alike) carries a relative round-off of about 1e-9: a Newton tolerance below this floor only
     # adds iterations (10 per point instead of 2 on the 3D lap joint), so compute_frf raises it.
     tol_floor = 1e-8
+    no_stability = "the exact condensation has no Hill operators (its dynamic stiffness is not polynomial in the exponent)"
 
     def __init__(self, structure: Structure, harmonics: Harmonics):
         if not structure.contacts:

@@ -49,10 +49,14 @@ def compute_rom_scales(structure: Structure, T: np.ndarray, omega_start: float, 
 
 class ForcedProblem(Problem):
     """HBM of a Structure under its harmonic force.  ``basis``: the Ritz basis T (n, q) of a
-    Galerkin projection (scales per ROM coordinate), None for a physical model."""
+    Galerkin projection (scales per ROM coordinate), None for a physical model.  ``no_stability``:
+    why the model's Floquet exponents are not the physical ones (the dual Craig-Bampton's saddle
+    point, whose spurious modes of negative w^2 are unstable exponents), None where they are."""
 
-    def __init__(self, structure: Structure, harmonics: Harmonics, basis: np.ndarray | None = None):
+    def __init__(self, structure: Structure, harmonics: Harmonics, basis: np.ndarray | None = None, *,
+                 no_stability: str | None = None):
         self.structure, self.harmonics, self.basis = structure, harmonics, basis
+        self.no_stability = no_stability
         self.hbm = HBMResidual(structure, harmonics)
         self._num_dynamic = None
         self.layout = Layout(structure.num_dofs, structure.dof_names, dict(structure.outputs),

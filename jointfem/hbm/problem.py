@@ -20,7 +20,8 @@ A problem is a residual ``R(x, lam) = 0`` in harmonic coefficients ``x`` and one
 * ``tol_floor``: a Newton tolerance below which this problem's round-off makes no progress;
 * ``branch_info()``: data of the whole branch (e.g. the active-set events);
 * ``hill_operators(lam)`` and ``num_dynamic()``: what Hill's method needs for the stability of a
-  point (analysis.stability), None where it does not apply.
+  point (analysis.stability), None where it does not apply;
+* ``no_stability``: None, or why no stability is computed for this problem's points.
 
 Implementations: :class:`jointfem.hbm.forced.ForcedProblem` (a Structure, physical or a Galerkin
 projection), :class:`jointfem.hbm.condensed.CondensedProblem` (exact condensation on the gaps)
@@ -119,6 +120,7 @@ class Problem(ABC):
     layout: Layout
     adaptation: Adaptive | None = None
     tol_floor: float = 0.0
+    no_stability: str | None = None  # why the points' Floquet exponents are not computed (None: they are)
 
     @property
     def num_coefficients(self) -> int:

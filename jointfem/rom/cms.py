@@ -10,11 +10,9 @@ substructure; the boundary DOFs of a substructure are those the joint touches.
 * rubin: free-interface modes + residual-flexibility attachment modes of unit boundary forces
   (residual mass kept), each column of unit mass norm (the span of Rubin's boundary-DOF form).
 * macneal: the Rubin basis without the residual inertia (mass of the kept modes only).
-* dcb: free-interface modes + residual attachment modes of the joint's interface force
-  patterns, one per joint connection (contact component or link).  The joint is springs,
-  not rigid compatibility, so the assembled system is solved in primal form by Galerkin
-  projection on this basis (Rixen's DCB would add the interface forces as Lagrange
-  multipliers; with springs the forces follow from the gaps).
+* dcb: Rixen's dual Craig-Bampton: free-interface modes + the residual flexibility's response to
+  the interface forces, which are unknowns (Lagrange multipliers) beside the joint's gaps; the
+  joint is dual-assembled, each connection with its own law (dual_craig_bampton).
 * cc: CB whose boundary DOFs are replaced by the lowest characteristic interface modes of
   the CB-reduced boundary matrices, joint stuck: the characteristic constraint modes of
   Castanier, Tan and Pierre (AIAA J. 39, 2001).  It stands where the paper's Fig. 5 has a
@@ -32,8 +30,8 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..linalg import Factorized, LinAlgError, eigen, pod
-from ..models.structure import Structure
-from .common import ReducedModel, RomError, RomOptions, project
+from ..models.structure import ContactGroup, Structure
+from .common import ReducedModel, RomError, RomOptions, check_basis, project
 
 
 def joint_operator(structure: Structure) -> tuple[sp.csr_matrix, np.ndarray]:
@@ -145,12 +143,16 @@ def _rubin_basis(structure: Structure, options: RomOptions, method: str):
     Tm, Ts = [], []
     for sub, num in zip(subs, _split(options.modes, len(subs))):
         nb = sub.b.size
-        if num + nb > sub.dofs.size:
+        if num == sub.dofs.size:
+            # every free mode: the residual flexibility is zero and no attachment mode is left (the
+            # complete basis; with fewer modes, attachments need fewer than n - nb of them)
+            nb = 0
+        elif num + nb > sub.dofs.size:
             raise RomError(f"{method}: substructure {sub.id} has {sub.dofs.size} DOFs, {nb} of them on its boundary: "
                            f"at most {sub.dofs.size - nb} free modes (asked for {num})")
         w2, Phi, lu = _free_modes(sub, num, method)
         E = np.zeros((sub.dofs.size, nb))
-        E[sub.b, np.arange(nb)] = 1.0
+        E[sub.b[:nb], np.arange(nb)] = 1.0
         A = _residual_flexibility(lu, Phi, w2, E)  # attachment modes of unit boundary forces
         A = A / np.sqrt(np.einsum("ij,ij->j", A, sub.M @ A))
         gram = np.linalg.eigvalsh(A.T @ (sub.M @ A)) if nb else np.ones(1)
@@ -184,19 +186,74 @@ def macneal(structure: Structure, options: RomOptions) -> ReducedModel:
 
 
 def dual_craig_bampton(structure: Structure, options: RomOptions) -> ReducedModel:
+    """Rixen's dual Craig-Bampton (Int. J. Numer. Meth. Eng. 2004, "A dual Craig-Bampton method
+    for dynamic substructuring"), with the joint's interface forces as unknowns.
+
+    The joint is dual-assembled: every joint connection j (a contact component or a link) has a
+    gap g_j, a Lagrange multiplier lambda_j (the interface force it puts on the substructures) and
+    its law, so the full model is, exactly,
+
+        M u'' + D u' + K_s u + C^T lambda = f     (K_s: the substructures, links taken out)
+        C u - g = 0                                (compatibility of the gaps)
+        -lambda + f_joint(g) = 0                   (the joint: contact law - f0, or k_link g)
+
+    and each substructure's displacement is reduced to its lowest free modes plus the static
+    response its residual flexibility gives to the interface forces: u = Phi eta - G_res C^T lambda,
+    G_res = K_s^-1 - Phi diag(1/w2) Phi^T.  The reduced equations are the Galerkin projection of
+    that extended system on T = [[Phi, -G_res C^T, 0], [0, I, 0], [0, 0, I]] (Rixen's DCB matrices
+    with the joint's two rows): unknowns (eta, lambda, g), m + 2 J of them.  With every free mode,
+    G_res = 0 and the reduction is the full model (tested).  The compatibility rows are multiplied
+    by each connection's stiffness, which leaves the solution and puts every residual in N.  The
+    reduced K is indefinite and its mass singular (g has none): a saddle point, which the HBM
+    solves like any square system."""
     subs = substructures(structure, "dcb")
-    C, _ = joint_operator(structure)
-    n = structure.num_dofs
-    Tm, Ta = [], np.zeros((n, C.shape[0]))
+    C, k = joint_operator(structure)
+    for g in structure.contacts:
+        if g.load is not None:
+            raise RomError("dcb: a contact group with its own load operator cannot be dual-assembled")
+    n, J = structure.num_dofs, C.shape[0]
+    Tm, Ta = [], np.zeros((n, J))
     for sub, num in zip(subs, _split(options.modes, len(subs))):
         w2, Phi, lu = _free_modes(sub, num, "dcb")
         blk = np.zeros((n, num))
         blk[sub.dofs] = Phi
         Tm.append(blk)
-        Cs = C[:, sub.dofs].T.toarray()  # interface force patterns on this substructure
+        Cs = C[:, sub.dofs].T.toarray()  # the interface force patterns on this substructure
         Ta[sub.dofs] = _residual_flexibility(lu, Phi, w2, Cs)
     Tm = np.hstack(Tm)
-    return project(structure, np.hstack([Tm, Ta]), "dcb", info={"modes": Tm.shape[1], "statics": Ta.shape[1]})
+    m = Tm.shape[1]
+    U = np.hstack([Tm, -Ta, np.zeros((n, J))])  # u of (eta, lambda, g)
+    q = m + 2 * J
+    lam, gap = np.arange(m, m + J), np.arange(m + J, q)
+    El = sp.csr_matrix((np.ones(J), (np.arange(J), lam)), shape=(J, q))
+    Eg = sp.csr_matrix((np.ones(J), (np.arange(J), gap)), shape=(J, q))
+    Ks = structure.K - (structure.links.matrix if structure.links is not None else 0)
+    CU = C @ U
+    K = U.T @ (Ks @ U) + El.T @ CU + CU.T @ El - (El.T @ Eg + Eg.T @ El).toarray()
+    num_links = 0 if structure.links is None else structure.links.stiffness.size
+    if num_links:
+        K[gap[J - num_links:], gap[J - num_links:]] += structure.links.stiffness
+    # compatibility rows in N: times each connection's stiffness (the largest where it has none)
+    s = np.where(k > 0, k, k.max() if k.max() > 0 else 1.0)
+    S = np.ones(q)
+    S[lam] = s
+    Mr, Dr = U.T @ (structure.M @ U), U.T @ (structure.D @ U)
+    check_basis(Tm, Mr[:m, :m], "dcb free modes")  # (lambda and g are no Ritz coordinates of u alone)
+    rows, contacts = 0, []
+    for g in structure.contacts:
+        r = g.gap.shape[0]
+        contacts.append(ContactGroup(g.pairs, sp.csr_matrix(Eg[rows:rows + r]), names=g.names, coords=g.coords,
+                                     areas=g.areas))
+        rows += r
+    outputs = {name: U[dof].copy() for name, dof in structure.outputs.items()}
+    red = Structure(K=sp.csr_matrix(S[:, None] * K), M=sp.csr_matrix(S[:, None] * Mr),
+                    D=sp.csr_matrix(S[:, None] * Dr), fc=S * (U.T @ structure.fc), fs=S * (U.T @ structure.fs),
+                    contacts=tuple(contacts),
+                    dof_names=(*(f"dcb.eta{i}" for i in range(m)), *(f"dcb.lambda{j}" for j in range(J)),
+                               *(f"dcb.g{j}" for j in range(J))),
+                    outputs=outputs, info={"kind": "rom:dcb", "full_dofs": n},
+                    f0=None if structure.f0 is None else S * (U.T @ structure.f0))
+    return ReducedModel("dcb", red, U, n, info={"modes": m, "multipliers": J, "gaps": J}, indefinite=True)
 
 
 def characteristic_constraint_modes(structure: Structure, options: RomOptions) -> ReducedModel:

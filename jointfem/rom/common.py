@@ -18,7 +18,7 @@ from ..harmonics import Harmonics
 from ..hbm.condensed import CondensedProblem
 from ..hbm.forced import ForcedProblem
 from ..hbm.problem import Problem
-from ..linalg import eigen
+from ..linalg import eigen, finite_frequencies
 from ..models.structure import ContactGroup, Structure
 
 
@@ -103,6 +103,9 @@ class ReducedModel(Reduction):
     full_size: int
     offline_s: float = 0.0
     info: dict = field(default_factory=dict)
+    # a saddle-point model (the dual Craig-Bampton's multipliers and gaps): K_lin indefinite, M
+    # singular, so its frequencies are the finite eigenvalues of the general pencil
+    indefinite: bool = False
 
     @property
     def basis(self) -> np.ndarray:
@@ -113,11 +116,19 @@ class ReducedModel(Reduction):
         return self.structure.num_dofs
 
     def create_problem(self, harmonics: Harmonics) -> Problem:
-        return ForcedProblem(self.structure, harmonics, self.T)
+        return ForcedProblem(self.structure, harmonics, self.T, no_stability=(
+            f"{self.method} is a saddle point (indefinite K, singular M) whose spurious modes of negative w^2 "
+            f"are unstable Floquet exponents of no physical meaning" if self.indefinite else None))
 
     def natural_frequencies(self, num: int) -> np.ndarray:
         """The lowest ``num`` stuck natural frequencies of the ROM, rad/s."""
         s = self.structure
+        if self.indefinite:
+            w, negative = finite_frequencies(s.K_lin, s.M, num, what=f"{self.method} ROM")
+            # w^2 < 0: the spurious modes of an indefinite reduction (Rixen 2004), and how far out they lie
+            self.info["spurious_modes"] = int(negative.size)
+            self.info["spurious_lowest_rad_s"] = float(np.sqrt(-negative[-1])) if negative.size else None
+            return w
         # MacNeal's reduced mass has the rank of its modes: no more finite frequencies than that
         rank = np.linalg.matrix_rank(s.M.toarray())
         w2, _ = eigen(s.K_lin, s.M, min(num, rank), what=f"{self.method} ROM")
