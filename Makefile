@@ -2,7 +2,7 @@
 PY := .venv/bin/python
 MPIRUN := mpirun $(if $(filter 0,$(shell id -u)),--allow-run-as-root) --oversubscribe
 
-.PHONY: setup demo test test-fast bench bench-corners bench-friction bench-nma bench-preload brb paper validate clean
+.PHONY: setup demo test test-fast bench bench-corners bench-harmonics bench-friction bench-nma bench-preload brb paper validate clean
 
 setup:
 	@bash tools/setup.sh
@@ -28,6 +28,11 @@ brb: setup
 # issue 14's sweeps at strong separation, each under a time budget (about 30 min on 2 cores)
 bench-corners: setup
 	$(PY) benchmarks/corners.py --out docs/benchmarks_corners.md --jobs 2 --skip-before
+
+# issue 14's harmonic convergence: the beam at 3 N, exact condensation with the event-accurate AFT,
+# H = 3 to 41 (docs/benchmarks_harmonics.md)
+bench-harmonics: setup
+	$(PY) benchmarks/harmonics.py --out docs/benchmarks_harmonics.md --jobs 2
 
 # issue 13's trade where friction dominates: the 3D lap joint at 1 MPa, ROMs against the exact
 # condensation, and the energy per cycle against the force (about 15 min on 2 cores)
