@@ -34,6 +34,45 @@ BUDGET = 900  # s per sweep
 SERIES = [("exact", H, 1024, "events") for H in (3, 5, 7, 9, 11, 13, 15, 17, 21, 25, 31, 41)]
 CHECKS = [("full", 9, 1024, "events"), ("exact", 41, 2048, "events"), ("exact", 11, 1024, "sampled")]
 QUICK = [("exact", 5, 256, "events"), ("exact", 21, 256, "events")]
+TOP = SERIES[-1]
+TIMEINT = dict(periods=400, steps=(2000, 4000))  # Newmark from rest at the top H's peak frequency
+
+
+def timeint_check(omega_branch: np.ndarray, U: np.ndarray, omega: float, H: int, N: int) -> dict:
+    """Where the top H's branch has several solutions at its peak frequency, which one is the
+    steady state that time integration reaches from rest?  Every HBM solution at that omega is
+    solved (Newton from each branch point within 0.2 rad/s, distinct to 1e-6), then the implicit
+    Newmark integration of demos/beam_timeint_check.py (its own contact law, no shared code with
+    the AFT) runs from rest for ``periods`` periods, and its last period's first harmonic is
+    compared with each solution."""
+    import dataclasses as dc
+    import sys
+    sys.path.insert(0, str(ROOT / "demos"))
+    from beam_timeint_check import integrate
+    from jointfem.analysis.frf import solve_at
+    from jointfem.app import override_harmonics
+    from jointfem.harmonics import Harmonics
+    from jointfem.rom.reductors import build_rom
+    from jointfem.scene import create_structure, load_scene
+    sc = override_harmonics(load_scene(ROOT / SCENE), H, N)
+    sc = dc.replace(sc, solver=dc.replace(sc.solver, aft="events"))
+    st = create_structure(sc)
+    ex = build_rom(st, "exact")
+    sols = []
+    for i in np.flatnonzero(np.abs(omega_branch - omega) < 0.2):
+        a = solve_at(ex, omega, Harmonics(H, N), guess=U[i]).amplitudes["b1.mid.uy"]
+        if all(abs(a / b - 1) > 1e-6 for b in sols):
+            sols.append(a)
+    out = {"omega_rad_s": omega, "hbm_solutions_m": sorted(sols), "timeint": []}
+    dof, n = st.outputs["b1.mid.uy"], st.num_dofs
+    for steps in TIMEINT["steps"]:
+        t0 = time.perf_counter()
+        y = integrate(st, np.zeros(3 * n), omega, np.zeros(st.contacts[0].pairs.num_pairs),
+                      periods=TIMEINT["periods"], steps=steps, dof=dof)
+        a1 = [float(abs(np.fft.rfft(part)[1]) * 2 / steps) for part in (y[:steps], y[steps:])]
+        out["timeint"].append({"steps": steps, "first_harmonic_m": a1[1], "last_period_change": a1[1] / a1[0] - 1,
+                               "s": time.perf_counter() - t0})
+    return out
 
 
 def run(case):
@@ -57,6 +96,8 @@ def run(case):
         name = "b1.mid.uy"
         w, a = frf.peak(name)
         he = frf.info["arrays"]["harmonic_error"]
+        if case == TOP:  # its branch, for the time integration at its peak
+            row["_branch"] = (frf.omega, frf.U)
         row.update(status="complete", points=frf.num_points, unknowns=frf.info["num_unknowns"],
                    residual_max=float(frf.info["arrays"]["residual"].max()), peak_m=a, peak_rad_s=w,
                    located=bool(frf.info["peaks"][name].located), trunc_max=float(he.max()),
@@ -70,12 +111,42 @@ def run(case):
     return row
 
 
+def timeint_lines(ti: dict, how: str) -> list[str]:
+    sols = ti["hbm_solutions_m"]
+    out = ["## Time integration at the top H's peak frequency", "",
+           f"At omega = {ti['omega_rad_s']:.4f} rad/s (the located peak of H = {TOP[1]}), {how}: the HBM has "
+           f"{len(sols)} solutions there, first-harmonic amplitudes {', '.join(f'{a:.6e}' for a in sols)} m. "
+           f"Newmark (demos/beam_timeint_check.py's integrator, its own contact law) from rest, "
+           f"{TIMEINT['periods']} periods; its last period's first harmonic against the nearest HBM solution:", "",
+           "| steps per period | first harmonic [m] | change over the last period | nearest HBM solution | difference | s |",
+           "|---|---|---|---|---|---|"]
+    for t in ti["timeint"]:
+        a = t["first_harmonic_m"]
+        near = min(sols, key=lambda b: abs(a - b))
+        out.append(f"| {t['steps']} | {a:.6e} | {t['last_period_change']:+.1e} | {near:.6e} | {a / near - 1:+.3%} | "
+                   f"{t['s']:.0f} |")
+    return out
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--out", default="docs/benchmarks_harmonics.md")
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--quick", action="store_true", help="two coarse sweeps (H = 5, 21 at N = 256)")
+    ap.add_argument("--timeint-from", type=Path, metavar="DIR",
+                    help="only the time integration, on the branch of a `jointfem frf` folder made with the top "
+                         "row's settings; appended to --out")
     args = ap.parse_args()
+    if args.timeint_from is not None:
+        d = np.load(args.timeint_from / "branch.npz", allow_pickle=True)
+        summary = json.loads((args.timeint_from / "summary.json").read_text())
+        method, H, N, law = TOP
+        assert (summary["method"], summary["harmonics"], summary["samples"]) == (method, H, N), summary
+        ti = timeint_check(d["omega"], d["U"], float(summary["peaks"]["b1.mid.uy"]["omega_rad_s"]), H, N)
+        print(json.dumps(ti))
+        with open(args.out, "a") as f:
+            f.write("\n" + "\n".join(timeint_lines(ti, f"--timeint-from {args.timeint_from}")) + "\n")
+        return
     work = QUICK if args.quick else SERIES + CHECKS
     t0 = time.time()
     rows = []
@@ -126,6 +197,10 @@ def main():
                      f"{r['peak_m']:.6e} | {r['peak_rad_s']:.4f} | {dprev} | {dtop} |")
         if in_series:
             prev = r
+    branch = next((r.pop("_branch") for r in rows if "_branch" in r), None)
+    if branch is not None:
+        top_row = next(r for r in rows if (r["method"], r["H"], r["N"], r["law"]) == TOP)
+        lines += [""] + timeint_lines(timeint_check(*branch, top_row["peak_rad_s"], TOP[1], TOP[2]), "(this run)")
     Path(args.out).write_text("\n".join(lines) + "\n")
     Path(args.out).with_suffix(".json").write_text(json.dumps(rows, indent=1))
     print("wrote", args.out)
