@@ -270,7 +270,11 @@ models").
 The separated branch folds back to about 239 Hz at H = 3; that loop shrinks as H grows (260.5 Hz
 at H = 5, 268 Hz at H = 9: docs/theory.md, "Known limits"), so it is mostly a truncation
 artefact, but the same one for every method: the comparison is like for like.  H = 3 keeps the
-whole study at about two minutes.
+whole study at about two minutes.  It is not the beam's converged response: the peak converges
+to 0.1 % only from H = 21 on, at 2.9084e-4 m and 1693.64 rad/s, which H = 3 misses by +1.1 % in
+amplitude and -4.4 rad/s (docs/benchmarks_harmonics.md, by the exact condensation with the
+event-accurate AFT).  This figure at a converged H, with every ROM and with stability marked, is
+not made yet (issue 14).
 
 {fig6}
 "curve err" is the largest distance of the ROM's points from the full curve in

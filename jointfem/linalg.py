@@ -176,14 +176,14 @@ def eigen(K, M, num: int, *, what: str = "model", sigma: float = 0.0) -> tuple[n
     return w2, Phi * sign
 
 
-def finite_frequencies(K, M, num: int, *, what: str = "model") -> tuple[np.ndarray, np.ndarray]:
+def finite_frequencies(K, M, num: int, *, what: str = "model", at_most: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """The ``num`` lowest natural frequencies (rad/s) of a small pencil that need not be definite:
     a saddle-point model with a singular M (the dual Craig-Bampton's multipliers and gaps).  The
     finite eigenvalues of K phi = w^2 M phi by the dense QZ algorithm; infinite ones (massless
     coordinates) are dropped, and real negative ones (w^2 < 0: the spurious modes of an indefinite
     reduction) are returned apart.  Returns (frequencies, the negative w^2 ascending).  Raises
-    LinAlgError where fewer than ``num`` real positive ones exist, or where one of them is complex
-    beyond round-off."""
+    LinAlgError where fewer than ``num`` real positive ones exist (``at_most``: returns those), or
+    where one of them is complex beyond round-off."""
     Kd = K.toarray() if sp.issparse(K) else np.asarray(K, float)
     Md = M.toarray() if sp.issparse(M) else np.asarray(M, float)
     ab = sla.eig(Kd, Md, right=False, homogeneous_eigvals=True)
@@ -194,9 +194,10 @@ def finite_frequencies(K, M, num: int, *, what: str = "model") -> tuple[np.ndarr
     negative = np.sort(w2.real[real & (w2.real < 0)])
     positive = np.sort(w2.real[real & (w2.real > 0)])
     complex_ = w2[~real]
-    if positive.size < num:
+    if positive.size < num and not at_most:
         raise LinAlgError(f"{what}: only {positive.size} real positive eigenvalues, {num} asked")
-    if complex_.size and np.abs(complex_).min() < positive[num - 1]:
+    num = min(num, positive.size)
+    if num and complex_.size and np.abs(complex_).min() < positive[num - 1]:
         raise LinAlgError(f"{what}: a complex eigenvalue w^2 = {complex_[np.argmin(np.abs(complex_))]:.6g} lies "
                           f"among the lowest {num}: no natural frequency")
     return np.sqrt(positive[:num]), negative

@@ -124,7 +124,8 @@ class ReducedModel(Reduction):
         """The lowest ``num`` stuck natural frequencies of the ROM, rad/s."""
         s = self.structure
         if self.indefinite:
-            w, negative = finite_frequencies(s.K_lin, s.M, num, what=f"{self.method} ROM")
+            # (as many as it has: with m modes and J multipliers, the DCB can have fewer than m + J)
+            w, negative = finite_frequencies(s.K_lin, s.M, num, what=f"{self.method} ROM", at_most=True)
             # w^2 < 0: the spurious modes of an indefinite reduction (Rixen 2004), and how far out they lie
             self.info["spurious_modes"] = int(negative.size)
             self.info["spurious_lowest_rad_s"] = float(np.sqrt(-negative[-1])) if negative.size else None
