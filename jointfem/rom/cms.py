@@ -145,7 +145,7 @@ def _rubin_basis(structure: Structure, options: RomOptions, method: str):
         nb = sub.b.size
         if num == sub.dofs.size:
             # every free mode: the residual flexibility is zero and no attachment mode is left (the
-            # complete basis; with fewer modes, attachments need fewer than n - nb of them)
+            # complete basis; short of it, at most n - nb free modes leave room for the attachments)
             nb = 0
         elif num + nb > sub.dofs.size:
             raise RomError(f"{method}: substructure {sub.id} has {sub.dofs.size} DOFs, {nb} of them on its boundary: "
