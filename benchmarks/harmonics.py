@@ -40,7 +40,17 @@ SERIES = [("exact", H, 1024, "events") for H in (3, 5, 7, 9, 11, 13, 15, 17, 21,
 CHECKS = [("full", 9, 1024, "events"), ("exact", 41, 2048, "events"), ("exact", 11, 1024, "sampled")]
 QUICK = [("exact", 5, 256, "events"), ("exact", 21, 256, "events")]
 TOP = SERIES[-1]
-TIMEINT = dict(periods=1200, steps=(2000, 4000))  # 400 were not enough: the last period still changed by 6e-5  # Newmark from rest at the top H's peak frequency
+# Newmark from rest at the top H's peak frequency (400 periods were not enough: the last still changed by 6e-5)
+TIMEINT = dict(periods=1200, steps=(2000, 4000))
+
+
+def scene_at(H: int, N: int, law: str):
+    """The beam scene at H harmonics, N samples and the AFT ``law`` ("sampled" or "events")."""
+    from jointfem.app import override_harmonics
+    from jointfem.scene import load_scene
+    sc = override_harmonics(load_scene(ROOT / SCENE), H, N)
+    assert sc.data["force"]["amplitude"] == FORCE, sc.data["force"]
+    return dataclasses.replace(sc, solver=dataclasses.replace(sc.solver, aft=law))
 
 
 def timeint_check(omega_branch: np.ndarray, U: np.ndarray, omega: float, H: int, N: int) -> dict:
@@ -50,18 +60,14 @@ def timeint_check(omega_branch: np.ndarray, U: np.ndarray, omega: float, H: int,
     Newmark integration of demos/beam_timeint_check.py (its own contact law, no shared code with
     the AFT) runs from rest for ``periods`` periods, and its last period's first harmonic is
     compared with each solution."""
-    import dataclasses as dc
     import sys
     sys.path.insert(0, str(ROOT / "demos"))
     from beam_timeint_check import integrate
     from jointfem.analysis.frf import solve_at
-    from jointfem.app import override_harmonics
     from jointfem.harmonics import Harmonics
     from jointfem.rom.reductors import build_rom
-    from jointfem.scene import create_structure, load_scene
-    sc = override_harmonics(load_scene(ROOT / SCENE), H, N)
-    sc = dc.replace(sc, solver=dc.replace(sc.solver, aft="events"))
-    st = create_structure(sc)
+    from jointfem.scene import create_structure
+    st = create_structure(scene_at(H, N, "events"))
     ex = build_rom(st, "exact")
     sols = []
     for i in np.flatnonzero(np.abs(omega_branch - omega) < 0.2):
@@ -83,13 +89,11 @@ def timeint_check(omega_branch: np.ndarray, U: np.ndarray, omega: float, H: int,
 def run(case):
     method, H, N, law = case
     from jointfem.analysis.frf import compute_frf
-    from jointfem.app import override_harmonics, sweep_options
+    from jointfem.app import sweep_options
     from jointfem.continuation.arclength import ContinuationError
     from jointfem.rom.reductors import build_rom
-    from jointfem.scene import create_structure, load_scene
-    sc = override_harmonics(load_scene(ROOT / SCENE), H, N)  # (its force is FORCE)
-    assert sc.data["force"]["amplitude"] == FORCE, sc.data["force"]
-    sc = dataclasses.replace(sc, solver=dataclasses.replace(sc.solver, aft=law))
+    from jointfem.scene import create_structure
+    sc = scene_at(H, N, law)
     opts = sweep_options(sc, stability="off")
     opts = replace(opts, continuation=replace(opts.continuation, time_limit=BUDGET))
     st = create_structure(sc)

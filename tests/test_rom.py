@@ -9,7 +9,7 @@ import scipy.sparse as sp
 
 from jointfem.contact.jenkins import compute_aft
 from jointfem.continuation.arclength import ContinuationOptions, NewtonOptions, solve_adaptive, solve_newton
-from jointfem.analysis.frf import SweepOptions, compute_frf, create_problem
+from jointfem.analysis.frf import SweepOptions, compute_frf, create_problem, solve_at
 from jointfem.hbm.problem import newton_system
 from jointfem.harmonics import Harmonics
 from jointfem.hbm.residual import HBMResidual
@@ -515,7 +515,6 @@ COMPLETE = {  # the 6-element beam: 36 DOFs, 18 per substructure, 9 of them on e
 def slipping_beam():
     """The 6-element beam with a joint that slips at one frequency below its second mode (N0 = 5 N,
     kt = 1e6 N/m, 1 N), and its full-order HBM solution there (H = 3)."""
-    from jointfem.analysis.frf import solve_at
     s = create_beam2d(Beam2DSpec(elements=6, force=1.0, N0=5.0, kt=1e6, **RAYLEIGH))
     omega = 0.985 * float(np.sqrt(eigen(s.K_lin, s.M, 2)[0][1]))
     h = Harmonics(3, 256)
@@ -528,7 +527,6 @@ def test_complete_bases_are_the_full_model(method, slipping_beam):
     1e-8 (measured 5e-14 for cb to 3.3e-10 for dcb, whose pencil is solved by QZ) and, where every
     pair slips (dissipation > 0), the nonlinear HBM solution at one frequency: output amplitude and
     each pair's energy per cycle to 1e-8 (measured 2e-12 to 1e-10, Newton's tolerance being 1e-10)."""
-    from jointfem.analysis.frf import solve_at
     s, omega, h, ref = slipping_beam
     assert np.all(ref.record.pair_summary[:, 0] > 1e-7)  # the reference slips at every pair
     rom = build_rom(s, method, COMPLETE[method])
@@ -546,7 +544,6 @@ def test_dual_craig_bampton_solves_for_the_interface_forces(slipping_beam):
     reduction, not the full model: the HBM solution differs (measured 7e-6 relative), and its
     indefinite pencil has spurious modes of negative w^2 (3, the lowest at |w| = 1.2e5 rad/s,
     measured), far above the highest harmonic solved (3 omega = 6.5e3 rad/s)."""
-    from jointfem.analysis.frf import solve_at
     from jointfem.rom.cms import joint_operator
     s, omega, h, ref = slipping_beam
     C, k = joint_operator(s)
