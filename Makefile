@@ -34,8 +34,8 @@ bench-corners: setup
 bench-harmonics: setup
 	$(PY) benchmarks/harmonics.py --out docs/benchmarks_harmonics.md --jobs 2
 
-# issue 13's trade where friction dominates: the 3D lap joint at 1 MPa, ROMs against the exact
-# condensation, and the energy per cycle against the force (about 15 min on 2 cores)
+# issue 13's trade where friction dominates: the 3D lap joint at 1 MPa and the beam with kt = 1e6 N/m, ROMs against the exact
+# condensation, and the energy per cycle against the force (about 6 min on 2 cores)
 bench-friction: setup
 	$(PY) benchmarks/friction.py --out docs/benchmarks_friction.md
 
