@@ -119,7 +119,7 @@ def compute_frf(model: Structure | Reduction, options: SweepOptions, *,
     # the tangent (the problem returns it again from its last evaluation)
     # (decided once, on the largest system the problem can have: the penalty ROM's grows)
     stability = (options.stability if options.stability is not None
-                 else problem.num_coefficients <= options.stability_auto_unknowns)
+                 else problem.hill_size <= options.stability_auto_unknowns)
 
     def record(U, omega):
         # (called as the continuation accepts a point: the unknowns now are those it was solved in)
@@ -127,7 +127,7 @@ def compute_frf(model: Structure | Reduction, options: SweepOptions, *,
         rec = replace(problem.record(U, omega, ev), harmonic_error=top_harmonic_share(ev.contact, h),
                       unknowns=problem.num_unknowns)
         if stability:
-            rec = replace(rec, stability=max_real_part(problem, omega, ev))
+            rec = replace(rec, stability=max_real_part(problem, U, omega, ev))
         return rec
 
     # a frequency response lives at positive omega: a branch that leaves twice the sweep's span
@@ -216,9 +216,9 @@ def compute_frf(model: Structure | Reduction, options: SweepOptions, *,
     elif options.stability is False:
         info["stability"] = "not computed (stability off)"
     elif not stability:
-        info["stability"] = (f"not computed: {problem.num_coefficients} unknowns > {options.stability_auto_unknowns}, "
-                             f"the automatic limit (a dense eigensolve of twice the unknowns per point; "
-                             f"--stability on computes it)")
+        info["stability"] = (f"not computed: {problem.hill_size} unknowns > {options.stability_auto_unknowns}, "
+                             f"the automatic limit (an eigensolve of twice the unknowns of Hill's problem per "
+                             f"point; --stability on computes it)")
     else:
         info["stability"] = f"not computed: {problem.no_stability or 'this problem has no Hill operators'}"
     if layout.pair_coords is not None:

@@ -56,7 +56,7 @@ class CondensedProblem(KeepsLastEvaluation, Problem):
     # alike) carries a relative round-off of about 1e-9: a Newton tolerance below this floor only
     # adds iterations (10 per point instead of 2 on the 3D lap joint), so compute_frf raises it.
     tol_floor = 1e-8
-    no_stability = "the exact condensation has no Hill operators (its dynamic stiffness is not polynomial in the exponent)"
+    _full_problem = None  # the full model's HBM problem, for Hill's method at this problem's points
 
     def __init__(self, structure: Structure, harmonics: Harmonics):
         if not structure.contacts:
@@ -229,6 +229,44 @@ class CondensedProblem(KeepsLastEvaluation, Problem):
         for k in range(1, h.H + 1):
             out.append(data[k].T @ (Y[h.block_cos(k)] - 1j * Y[h.block_sin(k)]))
         return out
+
+    def hill_matrices(self, x, lam, evaluation):
+        """Hill's problem of the full model at the full field of the point (full_coefficients): the
+        condensed dynamic stiffness S_k(omega) is not polynomial in the exponent, the full model's
+        is, and both have the same periodic solution (analysis.stability)."""
+        if self._full_problem is None:
+            from .forced import ForcedProblem
+            self._full_problem = ForcedProblem(self.full, self.harmonics)
+        fp = self._full_problem
+        ev = fp.evaluate(self.full_coefficients(x, lam), lam, jacobian=True)
+        return ev.J, *fp.hill_operators(lam), fp.num_dynamic()
+
+    @property
+    def hill_size(self) -> int:
+        return self.full.num_dofs * self.harmonics.num_hc
+
+    def full_coefficients(self, U, omega: float) -> np.ndarray:
+        """The full model's HBM coefficients (every DOF, in the full-order problem's layout: harmonic
+        blocks of num_dofs) of the forced solution U at omega.  With the contact forces F_k of U's
+        gaps, u_k = Z_k^-1 (F_ext,k - G^T (F_k - f0 delta_k0)): exact, since the contact forces act on
+        the gaps alone, so the result solves the full-order residual to the condensation's round-off.
+        What the full-order problem needs at a point of this one: Hill's stability, a time
+        integration from the orbit's state, pictures of the whole field."""
+        h, s = self.harmonics, self.full
+        ev = self.evaluate(np.asarray(U, float), float(omega), jacobian=False)
+        load = np.zeros((h.num_hc, s.num_dofs))
+        for (g, _, _, _, f0), res in zip(self._groups, ev.contact):
+            load += (res.F - f0.reshape(res.F.shape)).reshape(h.num_hc, -1) @ g.gap
+        out = np.zeros((h.num_hc, s.num_dofs))
+        out[0] = Factorized(s.K, what="exact condensation: the static harmonic's recovery").solve(-load[0])
+        for k in range(1, h.H + 1):
+            c, s_ = h.block_cos(k), h.block_sin(k)
+            rhs = -(load[c] - 1j * load[s_]) + (self._F1 if k == 1 else 0.0)
+            Z = s.K - (k * omega) ** 2 * s.M + 1j * k * omega * s.D
+            u = Factorized(Z, what=f"exact condensation: recovery of harmonic {k} at omega = {omega:.6g} rad/s").solve(
+                rhs.astype(complex))
+            out[c], out[s_] = u.real, -u.imag
+        return out.ravel()
 
     def linear_mode(self, mode: int):
         """The stuck linear mode ``mode`` of the full structure: (omega rad/s, phi mass-normalised

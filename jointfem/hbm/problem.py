@@ -20,7 +20,10 @@ A problem is a residual ``R(x, lam) = 0`` in harmonic coefficients ``x`` and one
 * ``tol_floor``: a Newton tolerance below which this problem's round-off makes no progress;
 * ``branch_info()``: data of the whole branch (e.g. the active-set events);
 * ``hill_operators(lam)`` and ``num_dynamic()``: what Hill's method needs for the stability of a
-  point (analysis.stability), None where it does not apply;
+  point (analysis.stability), None where it does not apply; ``hill_matrices(x, lam, evaluation)``
+  puts them together with the Jacobian (by default the point's own), and ``hill_size`` is the size of
+  that Jacobian, which the automatic stability limit compares (the exact condensation, whose dynamic
+  stiffness is not polynomial in the exponent, answers with the full model's, at its point);
 * ``no_stability``: None, or why no stability is computed for this problem's points.
 
 Implementations: :class:`jointfem.hbm.forced.ForcedProblem` (a Structure, physical or a Galerkin
@@ -167,6 +170,20 @@ class Problem(ABC):
         """The number of Floquet exponents of a point: 2 per coordinate with mass, 1 per massless
         coordinate with damping (None where hill_operators is None)."""
         return None
+
+    def hill_matrices(self, x: np.ndarray, lam: float, evaluation: Evaluation):
+        """(J, Delta1, Delta2, num) of Hill's problem (J + s Delta1 + s^2 Delta2) v = 0 at the point x
+        (``evaluation``: this problem's at x, with its Jacobian), or None where there is none.  By
+        default the point's own Jacobian with ``hill_operators`` and ``num_dynamic``."""
+        ops = self.hill_operators(lam)
+        if ops is None or evaluation.J is None:
+            return None
+        return evaluation.J, ops[0], ops[1], self.num_dynamic()
+
+    @property
+    def hill_size(self) -> int:
+        """The number of rows of the Jacobian of ``hill_matrices`` (what Hill's method costs)."""
+        return self.num_coefficients
 
 
 def newton_system(problem: Problem):
