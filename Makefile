@@ -2,7 +2,7 @@
 PY := .venv/bin/python
 MPIRUN := mpirun $(if $(filter 0,$(shell id -u)),--allow-run-as-root) --oversubscribe
 
-.PHONY: setup demo test test-fast bench bench-corners bench-harmonics bench-friction bench-nma bench-preload brb paper validate clean
+.PHONY: setup demo test test-fast bench bench-corners bench-harmonics bench-friction bench-stability bench-nma bench-preload brb paper validate clean
 
 setup:
 	@bash tools/setup.sh
@@ -33,6 +33,11 @@ bench-corners: setup
 # H = 3 to 41 (docs/benchmarks_harmonics.md)
 bench-harmonics: setup
 	$(PY) benchmarks/harmonics.py --out docs/benchmarks_harmonics.md --jobs 2
+
+# issue 14's stability of the beam at a converged H (41): Hill's method at every point of the 3 N sweep
+# against Newmark started on one orbit of each stretch (about 15 min on 2 cores)
+bench-stability: setup
+	$(PY) benchmarks/stability.py --out docs/benchmarks_stability.md
 
 # issue 13's trade where friction dominates: the 3D lap joint at 1 MPa and the beam with kt = 1e6 N/m, ROMs against the exact
 # condensation, and the energy per cycle against the force (about 6 min on 2 cores)

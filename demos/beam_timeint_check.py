@@ -65,8 +65,8 @@ def contact(g, w, kt, kn, mu, N0):
     return f, w_new, Kt
 
 
-def integrate(structure, U, omega, w0, *, periods: int, steps: int, dof: int):
-    """Newmark from the HBM state; returns the response of ``dof`` over the last two periods."""
+def integrate(structure, U, omega, w0, *, periods: int, steps: int, dof: int, keep: int = 2):
+    """Newmark from the HBM state; returns the response of ``dof`` over the last ``keep`` periods."""
     grp = structure.contacts[0]
     G = grp.gap.tocsr()
     pr = grp.pairs
@@ -87,7 +87,7 @@ def integrate(structure, U, omega, w0, *, periods: int, steps: int, dof: int):
     a = spla.spsolve(M, force(0.0) - D @ v - K @ u - G.T @ fc0.ravel())
     base = (4 / dt**2) * M + (2 / dt) * D + K
     lu_cache = {}
-    out = np.zeros(2 * steps)
+    out = np.zeros(keep * steps)
     t = 0.0
     for it in range(periods * steps):
         t += dt
@@ -109,7 +109,7 @@ def integrate(structure, U, omega, w0, *, periods: int, steps: int, dof: int):
             if np.abs(r).max() > 1e-7 * np.abs(structure.fc).max():
                 raise RuntimeError(f"Newmark step at t = {t:.6g} s did not converge: max|r| = {np.abs(r).max():.3e} N")
         u, v, a, w = x, v1, a1, w1
-        k = it - (periods - 2) * steps
+        k = it - (periods - keep) * steps
         if k >= 0:
             out[k] = u[dof]
     return out
@@ -122,6 +122,32 @@ def hbm_response(U, n, h, omega, dof, t):
     for k in range(1, h.H + 1):
         y += Uh[h.block_cos(k)] * np.cos(k * omega * t) + Uh[h.block_sin(k)] * np.sin(k * omega * t)
     return y
+
+
+def departure(structure, U, omega, h, *, periods: int, steps: int, dof: int) -> np.ndarray:
+    """How far Newmark started on the HBM orbit U (every DOF's coefficients, harmonics ``h``) gets
+    from it: per period k = 1..periods, |Y_k - Y| / |Y| with Y_k the first harmonic (complex:
+    amplitude and phase) of ``dof`` over period k and Y the orbit's.  The sliders start where the
+    orbit has them at t = 0 (the full model's AFT)."""
+    from jointfem.analysis.frf import create_problem
+    n = structure.num_dofs
+    Uh = U.reshape(h.num_hc, n)[:, dof]
+    Y = Uh[h.block_cos(1)] - 1j * Uh[h.block_sin(1)]
+    w0 = create_problem(structure, h).evaluate(U, omega, jacobian=False).contact[0].w_start[:, 0]
+    y = integrate(structure, U, omega, w0, periods=periods, steps=steps, dof=dof, keep=periods).reshape(periods, steps)
+    wt = np.arange(1, steps + 1) * (2 * np.pi / steps)  # omega t at the step ends of a period
+    Yk = (2.0 / steps) * (y * np.exp(-1j * wt)).sum(axis=1)
+    return np.abs(Yk - Y) / abs(Y)
+
+
+def growth_rate(e: np.ndarray, omega: float, lo: float = 1e-4, hi: float = 1e-2) -> float | None:
+    """1/s: the slope of log e against time over the periods where lo < e, before e first passes hi
+    (None with fewer than 3 such periods): an unstable orbit's departure grows like e^{Re s t}."""
+    stop = int(np.argmax(e > hi)) if (e > hi).any() else e.size
+    k = np.flatnonzero(e[:stop] > lo)
+    if k.size < 3:
+        return None
+    return float(np.polyfit((k + 1) * (2 * np.pi / omega), np.log(e[k]), 1)[0])
 
 
 def stability_change(stable, top, lo, hi, omega, known=()):
@@ -208,7 +234,7 @@ def main(argv=None) -> int:
         if i not in hill:
             t0 = time.perf_counter()
             ev = problem.evaluate(frf.U[i], frf.omega[i], jacobian=True)
-            re = max_real_part(problem, frf.omega[i], ev)
+            re = max_real_part(problem, frf.U[i], frf.omega[i], ev)
             hill[i] = (re, is_stable(re, frf.omega[i]), time.perf_counter() - t0)
             print(f"  Hill at point {i} ({f_hz[i]:.3f} Hz): max Re s = {re:+.4g} 1/s, "
                   f"{'stable' if hill[i][1] else 'unstable'} ({hill[i][2]:.0f} s)", flush=True)
