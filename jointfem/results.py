@@ -186,7 +186,10 @@ def save_frf(frf: FrequencyResponse, out: Path, *, summary: dict) -> dict:
     if "stability" in frf.info:
         stab = {"status": frf.info["stability"]}
         if frf.stable is not None:
+            a = frf.info["arrays"]
+            pair = ~frf.stable & (a["floquet_leading_imag"] > 1e-6 * np.abs(frf.omega))
             stab.update(unstable_points=int((~frf.stable).sum()),
+                        unstable_by_complex_pair=int(pair.sum()),
                         folds=int(frf.info["arrays"]["fold"].sum()),
                         stability_changes=int(frf.info["arrays"]["stability_change"].sum()))
         summary["stability"] = stab

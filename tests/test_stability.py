@@ -103,6 +103,8 @@ def test_fold_middle_branch_is_unstable_against_time_integration():
     middle = np.arange(top + 1, low_fold)
     middle = middle[(w[middle] < w[top] - 0.005) & (w[middle] > w[low_fold] + 0.005)]
     assert middle.size > 5 and not stable[middle].any()
+    # a fold's middle branch loses its stability by a real exponent (branch.npz says which kind)
+    assert (a["floquet_leading_imag"][middle] <= 1e-9 * w[middle]).all()
     upper = np.flatnonzero((np.arange(w.size) < top) & (A > 3.0) & (w < w[top] - 0.005))
     lower = np.flatnonzero((np.arange(w.size) > low_fold) & (w > w[top] + 0.05))
     assert stable[upper].all() and stable[lower].all()

@@ -18,7 +18,7 @@ from ..results import FrequencyResponse
 from ..rom.common import Reduction
 from .convergence import top_harmonic_share
 from .peaks import locate_peaks
-from .stability import is_stable, max_real_part
+from .stability import is_stable, leading_exponent
 
 log = logging.getLogger(__name__)
 
@@ -127,7 +127,7 @@ def compute_frf(model: Structure | Reduction, options: SweepOptions, *,
         rec = replace(problem.record(U, omega, ev), harmonic_error=top_harmonic_share(ev.contact, h),
                       unknowns=problem.num_unknowns)
         if stability:
-            rec = replace(rec, stability=max_real_part(problem, U, omega, ev))
+            rec = replace(rec, stability=leading_exponent(problem, U, omega, ev))
         return rec
 
     # a frequency response lives at positive omega: a branch that leaves twice the sweep's span
@@ -199,11 +199,16 @@ def compute_frf(model: Structure | Reduction, options: SweepOptions, *,
                                     f"{points[k].lam:.6g} rad/s ({int((he > options.harmonic_tol).sum())} of "
                                     f"{he.size} points): more harmonics are needed there (H = {h.H})")
         log.warning(info["harmonic_warning"])
-    re = np.array([np.nan if r.stability is None else r.stability for r in records])
+    lead = np.array([np.nan if r.stability is None else r.stability for r in records], dtype=complex)
+    re = lead.real
     if np.isfinite(re).all():
         info["stability"] = "computed"
         stable = np.array([is_stable(r, w) for r, w in zip(re, omega)])
         info["arrays"]["floquet_max_real"] = re  # 1/s: the largest real part of the Floquet exponents
+        # 1/s: its imaginary part (>= 0): zero where a real exponent leads (a fold's kind of loss of
+        # stability), else a complex pair, whose verdict a time integration did not confirm on the
+        # beam with hysteretic friction (docs/theory.md, Stability of every point)
+        info["arrays"]["floquet_leading_imag"] = lead.imag
         info["arrays"]["stable"] = stable
         # where the stability changes between two points: a fold (omega turns back) or a bifurcation
         turn = np.zeros(omega.size, bool)

@@ -70,10 +70,19 @@ def floquet_exponents(J, d1, d2, num: int) -> np.ndarray:
 def max_real_part(problem: Problem, x: np.ndarray, lam: float, evaluation: Evaluation, *,
                   dense: bool | None = None) -> float | None:
     """The largest real part of the Floquet exponents (1/s) of the point x at omega = lam, or None
-    where the problem offers no Hill matrices or says why its exponents are not the physical ones.
-    ``evaluation``: the problem's at (x, lam), with its Jacobian.  ``dense``: every exponent by the
-    dense eigenproblem, or (False) those near zero by shift-invert Arnoldi; by default dense up to
-    DENSE_LIMIT first-order unknowns."""
+    (``leading_exponent``'s real part)."""
+    s = leading_exponent(problem, x, lam, evaluation, dense=dense)
+    return None if s is None else s.real
+
+
+def leading_exponent(problem: Problem, x: np.ndarray, lam: float, evaluation: Evaluation, *,
+                     dense: bool | None = None) -> complex | None:
+    """The Floquet exponent (1/s) with the largest real part of the point x at omega = lam, in the
+    strip |Im s| <= omega / 2 (real: a fold's kind of loss of stability; a complex pair: a
+    Neimark-Sacker or period-doubling kind), or None where the problem offers no Hill matrices or
+    says why its exponents are not the physical ones.  ``evaluation``: the problem's at (x, lam),
+    with its Jacobian.  ``dense``: every exponent by the dense eigenproblem, or (False) those near
+    zero by shift-invert Arnoldi; by default dense up to DENSE_LIMIT first-order unknowns."""
     if problem.no_stability is not None:
         return None
     hill = problem.hill_matrices(x, lam, evaluation)
@@ -81,11 +90,11 @@ def max_real_part(problem: Problem, x: np.ndarray, lam: float, evaluation: Evalu
         return None
     J, d1, d2, num = hill
     if dense if dense is not None else 2 * J.shape[0] <= DENSE_LIMIT:
-        s = floquet_exponents(J, d1, d2, num)
-        s = s[np.abs(s.imag) <= 0.5 * abs(lam) * (1 + 1e-9)]
+        s = in_strip(floquet_exponents(J, d1, d2, num), lam)
     else:
         s = exponents_near(J, d1, d2, lam)
-    return float(s.real.max())
+    k = int(np.argmax(s.real))
+    return complex(s[k].real, abs(s[k].imag))  # of a complex pair, the one with Im s > 0
 
 
 def exponents_near(J, d1, d2, omega: float, *, radius: float = 1.2, first: int = 24) -> np.ndarray:
@@ -134,7 +143,15 @@ def exponents_near(J, d1, d2, omega: float, *, radius: float = 1.2, first: int =
         if k >= most or np.abs(s - sigma).max() > radius * abs(omega):
             break
         k = min(2 * k, most)
-    return s[np.abs(s.imag) <= 0.5 * abs(omega) * (1 + 1e-9)]
+    return in_strip(s, omega)
+
+
+def in_strip(s: np.ndarray, omega: float) -> np.ndarray:
+    """The exponents with |Im s| <= omega / 2, or all of them where none is: with too few harmonics
+    for a mode far above omega (an SDOF at omega = 0.5 rad/s with H = 1: its copies 1 + k omega,
+    |k| <= H, never reach the strip) the strip holds no copy, and the |Im s| ordering decides."""
+    inside = s[np.abs(s.imag) <= 0.5 * abs(omega) * (1 + 1e-9)]
+    return inside if inside.size else s
 
 
 def is_stable(max_real: float, omega: float) -> bool:

@@ -65,8 +65,8 @@ class PointRecord:
     pair_summary: (num_pairs, 3): dissipated energy per cycle (J), tangential amplitude (m), peak
     normal force (N), per physical pair (ContactLaw.summary).
     active: the penalty ROM's active components (num_components,) bool, else None.
-    stability, harmonic_error: room for the largest real part of the Floquet exponents and for the
-    harmonic truncation error estimate (None until an analysis computes them).
+    stability, harmonic_error: room for the leading Floquet exponent (the largest real part; complex,
+    1/s) and for the harmonic truncation error estimate (None until an analysis computes them).
     """
 
     states: np.ndarray
@@ -74,7 +74,7 @@ class PointRecord:
     pair_summary: np.ndarray
     active: np.ndarray | None = None
     unknowns: int = 0
-    stability: float | None = None
+    stability: complex | None = None
     harmonic_error: float | None = None
 
 
