@@ -19,14 +19,15 @@ matrix that the |Im s| ordering selects outside it has no copy inside (measured 
 H = 5: 173 + 1438i 1/s at omega = 1702.6 rad/s, with no copy at 173 - 265i) and is an artefact of
 the truncation.
 
-The dense eigenproblem costs (2 n (2H+1))^3: 8 s for the beam's 1320 unknowns, minutes at H = 21.
+The dense eigenproblem costs (2 n (2H+1))^3: 3 s for the beam's 1320 unknowns (H = 5), minutes at
+H = 21.
 Above ``DENSE_LIMIT`` first-order unknowns, only the exponents nearest a small real shift sigma are
 computed, by shift-invert Arnoldi (ARPACK through scipy) on the same first-order pencil, with one
 factorisation of J + sigma Delta1 + sigma^2 Delta2 (sparse or dense, as J is).  That is enough for the
 verdict: every copy s + i k omega of an exponent has its real part, and a copy lies in the strip
 |Im s| <= omega / 2, so an exponent with |Re s| < omega (any that can decide stability) has a copy
-within omega * sqrt(5) / 2 < 1.2 omega of sigma; the count asked for grows until the farthest one returned lies
-beyond that radius (``exponents_near``).  The highly damped high modes, far to the left, are left out:
+within omega * sqrt(5) / 2 < 1.2 omega of sigma; the count asked for grows until the farthest one
+returned lies beyond that radius (``exponents_near``).  The highly damped high modes, far to the left, are left out:
 they do not change the largest real part.
 """
 from __future__ import annotations
