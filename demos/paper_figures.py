@@ -344,9 +344,10 @@ size x (2H + 1)).  Stability: Hill's method on each ROM's own HBM Jacobian, and 
 model's at the reference's points (docs/theory.md, "Stability of every point"); "over stable points"
 measures a ROM's stable points against the reference's whole curve.  The online times here include
 Hill's method at every point (those of the H = 3 study above do not), so they rank the cost of a
-sweep with its stability, not the ROMs' solves alone.  With hysteretic friction, an instability by
-a complex pair of exponents is not confirmed by time integration on this beam
-(docs/benchmarks_stability.md): the dashed parts are Hill's verdict.
+sweep with its stability, not the ROMs' solves alone.  The dashed parts are Hill's verdict, which
+time integration confirms on this beam at H = 41 (docs/benchmarks_stability.md); from some orbits
+unstable by a complex pair the motion settles on a torus or a period-doubled orbit within 1 % of
+them.
 
 ## Convergence against full order
 

@@ -206,8 +206,9 @@ def compute_frf(model: Structure | Reduction, options: SweepOptions, *,
         stable = np.array([is_stable(r, w) for r, w in zip(re, omega)])
         info["arrays"]["floquet_max_real"] = re  # 1/s: the largest real part of the Floquet exponents
         # 1/s: its imaginary part (>= 0): zero where a real exponent leads (a fold's kind of loss of
-        # stability), else a complex pair, whose verdict a time integration did not confirm on the
-        # beam with hysteretic friction (docs/theory.md, Stability of every point)
+        # stability), else a complex pair (a Neimark-Sacker or, near omega / 2, a period-doubling
+        # kind), from which the motion may settle on a nearby torus or period-doubled orbit
+        # (docs/theory.md, Stability of every point)
         info["arrays"]["floquet_leading_imag"] = lead.imag
         info["arrays"]["stable"] = stable
         # where the stability changes between two points: a fold (omega turns back) or a bifurcation
