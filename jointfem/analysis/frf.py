@@ -30,9 +30,9 @@ class SweepOptions:
     harmonics: Harmonics = Harmonics(5, 256)
     continuation: ContinuationOptions = field(default_factory=ContinuationOptions)
     locate_peaks: bool = True  # every output's peak solved to the Newton tolerance (analysis.peaks)
-    # Floquet exponents of every point by Hill's method (analysis.stability), a dense eigensolve of
-    # twice the unknowns per point: True always, False never, None ("auto") where that is cheap
-    # beside the sweep, up to stability_auto_unknowns unknowns
+    # Floquet exponents of every point by Hill's method (analysis.stability), an eigensolve of twice
+    # the unknowns of Hill's problem per point (dense, or near zero by Arnoldi above 1600): True
+    # always, False never, None ("auto") up to stability_auto_unknowns unknowns (Problem.hill_size)
     stability: bool | None = None
     stability_auto_unknowns: int = 160
     # warn when a point's harmonic truncation estimate (analysis.convergence) passes this: the
