@@ -32,6 +32,7 @@ import scipy.sparse.linalg as spla
 from ..harmonics import Harmonics
 from ..linalg import Factorized, LinAlgError, eigen
 from ..models.structure import Structure
+from .forced import ForcedProblem
 from .problem import (Evaluation, KeepsLastEvaluation, Layout, PointRecord, Problem, Scales, contact_records,
                       force_scale)
 from .residual import contact_pattern
@@ -235,7 +236,6 @@ class CondensedProblem(KeepsLastEvaluation, Problem):
         condensed dynamic stiffness S_k(omega) is not polynomial in the exponent, the full model's
         is, and both have the same periodic solution (analysis.stability)."""
         if self._full_problem is None:
-            from .forced import ForcedProblem
             self._full_problem = ForcedProblem(self.full, self.harmonics)
         fp = self._full_problem
         ev = fp.evaluate(self.full_coefficients(x, lam), lam, jacobian=True)
