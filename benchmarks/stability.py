@@ -12,9 +12,11 @@ integration.
    demos/beam_timeint_check.py (its own contact law, no code shared with the AFT) starts from the
    orbit's state at t = 0 and runs ``--periods`` periods.  Per period, the first harmonic of the
    output (complex: amplitude and phase) is compared with the orbit's: e_k = |Y_k - Y| / |Y|.
-   A point marked stable must stay within 1 % over every period.  From a point marked unstable
-   the integration must leave: e grows past 1 %, and its growth rate over the periods where
-   1e-4 < e < 1e-2 (a least-squares line through log e) is set beside Hill's largest real part.
+   A point marked stable is confirmed when e stays below 1 % over every period.  A point marked
+   unstable is confirmed when the integration leaves it: e passes 1 %, or its envelope grows at
+   half Hill's largest real part or faster before it settles on a nearby attractor (a period-doubled
+   orbit, a torus: envelope_growth); inconclusive where even Hill's rate could not have carried the
+   first period's e to 1 % within the run; contradicted otherwise.
 """
 from __future__ import annotations
 
