@@ -147,7 +147,7 @@ def test_exponents_near_zero_give_the_dense_verdict_on_the_separating_beam():
     N = 256), on the Craig-Bampton ROM (dense J, every 8th point of the branch: stuck, separating,
     folds) and at full order (sparse J, three points).  The largest real parts agree to 1e-6 omega
     (measured 1.1e-7 omega: the dense eigenvalues of a non-normal 600-2600 matrix carry that
-    round-off; a stuck point's exponent -2.962198 1/s, the Rayleigh damping of mode 2, comes out of
+    round-off; a stuck point's exponent -2.962198 1/s, the Rayleigh damping of mode 1, comes out of
     the Arnoldi path to 7 digits and of the dense one to 5), and the verdicts are equal."""
     import dataclasses
 
@@ -262,7 +262,8 @@ def test_beam_separated_fold_loop_stability_against_time_integration():
         s = exponents_near(*pb.hill_matrices(frf.U[i], w[i], ev)[:3], w[i])
         return complex(s[np.argmax(s.real)])
 
-    # at the folds a real exponent passes zero: small and real there, of opposite signs just beside
+    # at the folds a real exponent passes zero: small and real there (negative on the outer parts and
+    # positive on the middle branch, below)
     for f in (upper_fold, lower_fold):
         s = lead(f)
         assert abs(s.imag) < 1e-6 * w[f] and abs(s.real) < 5.0, (w[f], s)
