@@ -543,10 +543,17 @@ def _continuum(top: _Table, kind: str, path):
     structured = m.raw("structured", True)
     if not isinstance(structured, bool):
         m.fail("structured", structured, "must be true or false")
+    size_joint = m.number("size_joint", size, gt=0)
+    if shape != "bar" and size_joint > geo["overlap"] * (1 + 1e-9):
+        m.fail("size_joint", size_joint, f"must be <= overlap = {geo['overlap']} m (at least one element in the joint)")
+    if size_joint != size and not structured:
+        m.fail("size_joint", size_joint, "refines the joint of structured meshes only (structured = true)")
+    if geo["width"] / size_joint > 2000:
+        m.fail("size_joint", size_joint, "gives more than 2000 elements across the width: too fine for this tool")
     mesh_file = m.string("file", None)
     if mesh_file is not None and not Path(mesh_file).is_absolute() and Path(str(path)).is_file():
         mesh_file = str((Path(str(path)).resolve().parent / mesh_file).resolve())  # relative to the scene file
-    mesh = dict(size=size, size_normal=size_normal, degree=m.integer("degree", 2, ge=1),
+    mesh = dict(size=size, size_normal=size_normal, size_joint=size_joint, degree=m.integer("degree", 2, ge=1),
                 mesh_file=mesh_file, structured=structured)
     if mesh["degree"] > 2:
         m.fail("degree", mesh["degree"], "must be 1 or 2")

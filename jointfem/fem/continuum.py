@@ -74,6 +74,7 @@ class ContinuumSpec:
     clamped: tuple[bool, bool] = (True, True)
     size: float = 0.005  # m, element size along x and z
     size_normal: float | None = None  # m, along y (default: size)
+    size_joint: float | None = None  # m, along x over the joint and along z (default: size)
     degree: int = 2
     structured: bool = True  # transfinite quads/hexes; False: triangles/tetrahedra, periodic contact faces
     young: float = 2.1e11  # Pa
@@ -153,7 +154,8 @@ def build_mesh(spec: ContinuumSpec, comm=None) -> Mesh:
     geo.ensure_gmsh()
     try:
         if comm.rank == 0:
-            geo.build(layout, spec.size, size_normal=spec.size_normal, structured=spec.structured)
+            geo.build(layout, spec.size, size_normal=spec.size_normal, structured=spec.structured,
+                      size_joint=spec.size_joint)
             if spec.mesh_file:
                 _write_mesh(spec.mesh_file, layout.dim)
         mesh, cell_tags, facet_tags = compat.model_to_mesh(gmsh.model, comm, layout.dim)

@@ -112,10 +112,13 @@ def divisions(length: float, size: float) -> int:
 
 
 def build(layout: Layout, size: float, *, name: str = "jointfem", size_normal: float | None = None,
-          structured: bool = True):
+          structured: bool = True, size_joint: float | None = None):
     """Mesh ``layout`` in the current gmsh session (gmsh must be initialised by the caller).
 
     size: element size along x and z, m; size_normal: along y (default ``size``).
+    size_joint: element size along x over the joint's x-range and along z everywhere (a structured
+    mesh's z-divisions run through every block), so that the interface carries more pairs without
+    refining the bars away from it (default ``size``; structured meshes only).
     structured: transfinite quadrilaterals/hexahedra; otherwise unstructured triangles/tetrahedra
     of ``size``, with B's contact face meshed as a periodic copy (identity map) of A's, so that
     the two faces still carry the same nodes.
@@ -139,13 +142,21 @@ def build(layout: Layout, size: float, *, name: str = "jointfem", size_normal: f
     occ.synchronize()
 
     hn = size_normal or size
+    hj = size_joint or size
+    jx = layout.contact[:2] if layout.contact is not None else None
     if not structured:
         gmsh.option.setNumber("Mesh.MeshSizeMax", size)
         gmsh.option.setNumber("Mesh.MeshSizeMin", min(size, hn))
     for _, c in (gmsh.model.getEntities(1) if structured else []):
         x0, y0, z0, x1, y1, z1 = gmsh.model.getBoundingBox(1, c)  # padded by the OCC tolerance
         length = occ.getMass(1, c)  # exact
-        n = divisions(length, hn) if (y1 - y0) > max(x1 - x0, z1 - z0) else divisions(length, size)
+        if (y1 - y0) > max(x1 - x0, z1 - z0):  # along y, the stacking direction
+            n = divisions(length, hn)
+        elif (z1 - z0) > (x1 - x0):  # along z
+            n = divisions(length, hj)
+        else:  # along x: fine where it lies over the joint
+            inside = jx is not None and x0 >= jx[0] - 1e-6 * layout.extent and x1 <= jx[1] + 1e-6 * layout.extent
+            n = divisions(length, hj if inside else size)
         gmsh.model.mesh.setTransfiniteCurve(c, n + 1)
     for _, s in (gmsh.model.getEntities(2) if structured else []):
         gmsh.model.mesh.setTransfiniteSurface(s)
