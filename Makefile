@@ -2,7 +2,7 @@
 PY := .venv/bin/python
 MPIRUN := mpirun $(if $(filter 0,$(shell id -u)),--allow-run-as-root) --oversubscribe
 
-.PHONY: setup demo test test-fast bench bench-corners bench-harmonics bench-friction bench-stability bench-nma bench-preload brb paper validate clean
+.PHONY: setup demo test test-fast bench bench-corners bench-harmonics bench-friction bench-friction-fine bench-stability bench-nma bench-preload brb paper validate clean
 
 setup:
 	@bash tools/setup.sh
@@ -43,6 +43,11 @@ bench-stability: setup
 # condensation, and the energy per cycle against the force (about 6 min on 2 cores)
 bench-friction: setup
 	$(PY) benchmarks/friction.py --out docs/benchmarks_friction.md
+
+# the same joint with 221 pairs: penalty ROM against Craig-Bampton at scale (about an hour on 2 cores;
+# docs/benchmarks_friction_fine.md)
+bench-friction-fine: setup
+	$(PY) benchmarks/friction.py --cases lap3d_fine --out docs/benchmarks_friction_fine.md
 
 # issue 15's nonlinear modes: SDOF closed form and harmonics, backbone against forced sweeps, the
 # beam against full order, the 3D lap joint against the exact condensation, and the dissipation of the

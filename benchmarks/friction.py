@@ -44,7 +44,10 @@ class Case:
     output: str        # the DOF whose amplitude the errors and the peak are measured on
     title: str
     about: str         # the scene in one sentence (format fields: dofs, pairs, H, N, force)
-    stretches: tuple   # force scales, a branch each (contiguous)
+    stretches: tuple   # force scales, a branch each (contiguous); () skips the energy study
+    methods: tuple = tuple(METHODS)
+    repeats: int | None = None  # sweeps per ROM (None: --repeats)
+    profile: tuple = (PENALTY, "cb:20")  # the methods profiled in "where the online time goes"
 
 
 CASES = {
@@ -60,6 +63,15 @@ CASES = {
                  "the paper's; F_slip = 0.711 N, F_sep = 2.29 N on the stuck linear FRF, docs/scenes.md): "
                  "{dofs} DOFs, {pairs} pairs, H = {H}, N = {N}, {force:g} N at the middle of beam 1.",
                  ((0.01, 0.1), (0.1, 0.3), (0.3, 0.5), (0.5, 1.0), (1.0, 1.6))),
+    # the same joint with 221 pairs: Craig-Bampton keeps 1326 interface DOFs (9352 unknowns at
+    # H = 3, about 18 s a point), so one sweep per method, cb:10 only (cb:20 differs by 10 modes
+    # in 1336), and no energy study (the 25-pair case has it)
+    "lap3d_fine": Case("lap3d_fine", "lap3d_friction_fine.toml", "a_mid.uy", "3D lap joint, 221 pairs at 1 MPa",
+                       "demos/lap3d_friction_fine.toml: the joint of demos/lap3d_friction.toml with its interface "
+                       "meshed at 4.2 mm and the bars at 15 mm away from it: {dofs} DOFs, {pairs} pairs, H = {H}, "
+                       "N = {N}, {force:g} N at the middle of bar A, swept over the resonance only; one sweep per "
+                       "method (no median: Craig-Bampton's takes many minutes).",
+                       (), methods=("penalty:10:3", "cb:10"), repeats=1, profile=(PENALTY,)),
 }
 
 
@@ -149,47 +161,11 @@ def where_time_goes(structure, sweep, spec) -> dict:
             "unknowns": int(frf.info["num_unknowns"])}
 
 
-def run_case(case: Case, repeats: int, img: Path) -> list[str]:
-    """Run one case; its section of the report as markdown lines."""
-    from jointfem.analysis.compare import chord_error_estimate, compare, parse_method, to_markdown
-    from jointfem.analysis.frf import create_problem
-    from jointfem.app import sweep_options
-    from jointfem.contact.jenkins import SEPARATED, SLIP
-    from jointfem.plots import plot_compare, pyplot
+def energy_section(case: Case, structure, scene, ref, sweep, out_dof: str, img: Path) -> list[str]:
+    """Energy per cycle against force at the reference's resonance, penalty ROM against exact: the
+    section's markdown lines (and its picture)."""
+    from jointfem.plots import pyplot
     from jointfem.rom import RomOptions, build_rom
-    from jointfem.scene import create_structure, load_scene
-
-    t0 = time.perf_counter()
-    out_dof = case.output
-    scene = load_scene(ROOT / "demos" / case.scene)
-    structure = create_structure(scene)
-    sweep = sweep_options(scene, stability="off")
-    specs = [parse_method(m, RomOptions()) for m in METHODS]
-    results = compare(structure, specs, sweep, output=out_dof, reference="exact", repeats=repeats,
-                      reference_ds_max=0.03, progress=lambda m: print(f"friction ({case.key}): {m}", flush=True))
-    frf_png, pareto_png = f"compare_frf_{case.key}_friction.png", f"pareto_{case.key}_friction.png"
-    plot_compare(results, out_dof, img / frf_png, img / pareto_png,
-                 title=f"{case.title}, friction-dominated: error against online time")
-    ref = results[0]
-    by = {r.spec.label: r for r in results}
-    pen = by[PENALTY]
-    exact = create_problem(build_rom(structure, "exact"), sweep.harmonics)
-    solved = {}
-    for r in results[1:]:
-        if not r.failure:
-            print(f"friction ({case.key}): solved curve error of {r.spec.label}", flush=True)
-            solved[r.spec.label] = 100.0 * solved_curve_error(r.frf, exact, ref.frf, out_dof)
-    trade = []
-    for r in results[1:]:
-        if r.spec.method != "cb" or r.failure or pen.failure:
-            continue
-        trade.append((r.spec.label, pen.online_s / r.online_s, solved[PENALTY] <= solved[r.spec.label],
-                      abs(pen.peak_amp_err_pct) <= abs(r.peak_amp_err_pct)))
-    profiles = {label: where_time_goes(structure, sweep, by[label].spec) for label in (PENALTY, "cb:20")
-                if not by[label].failure}
-    st = ref.frf.states
-    shares = ((st == SLIP).mean(axis=(1, 2)).max(), (st == SEPARATED).mean(axis=(1, 2)).max())
-    trunc = float(ref.frf.info["arrays"]["harmonic_error"].max())
 
     # energy against force at the reference's resonance
     omega = float(ref.frf.info["peaks"][out_dof].omega)
@@ -235,6 +211,75 @@ def run_case(case: Case, repeats: int, img: Path) -> list[str]:
     plt.close(fig)
 
     lo, hi = case.stretches[0][0], case.stretches[-1][1]
+    onset = float(Fe[big].min())
+    return [
+        "",
+        "### Energy dissipated per cycle against the forcing",
+        "",
+        f"At the reference's located {force:g} N peak, omega = {omega:.4f} rad/s, continuation in the force scale "
+        f"from {lo:g} to {hi:g} times {force:g} N, one branch per stretch (scales "
+        f"{', '.join(f'{a:g}' for a, _ in case.stretches)} to {hi:g}).  Every pair sticks below "
+        f"{onset:.3g} N (the first force where the dissipation exceeds 1e-6 of its largest value); from there "
+        f"the dissipation grows by a factor of {growth:.3g} to the largest force (the slip share goes from "
+        f"{Se[big].min():.3f} to {Se.max():.3f}; the largest separated share is {Pe.max():.3f}).  "
+        f"{PENALTY} against the exact condensation, interpolated in log-log at the reference's forces: the "
+        f"largest relative difference in energy is {e_err:.2e} over every force where it exceeds 1e-6 of its "
+        f"largest value (at {at_worst:.3g} N), {e_err_main:.2e} where it exceeds 1e-3 of it and {e_err_tenth:.2e} "
+        f"where it exceeds a tenth of it.  The smallest energy per pair and "
+        f"point on the exact branch is {curves['exact'][5]:.2e} J (a passive slider dissipates >= 0).  "
+        f"Time: exact {te:.1f} s, penalty {tp:.1f} s.",
+        "",
+        f"![energy against force](img/{energy_png})",
+        "",
+    ]
+
+
+def run_case(case: Case, repeats: int, img: Path) -> list[str]:
+    """Run one case; its section of the report as markdown lines."""
+    from jointfem.analysis.compare import chord_error_estimate, compare, parse_method, to_markdown
+    from jointfem.analysis.frf import create_problem
+    from jointfem.app import sweep_options
+    from jointfem.contact.jenkins import SEPARATED, SLIP
+    from jointfem.plots import plot_compare
+    from jointfem.rom import RomOptions, build_rom
+    from jointfem.scene import create_structure, load_scene
+
+    t0 = time.perf_counter()
+    out_dof = case.output
+    scene = load_scene(ROOT / "demos" / case.scene)
+    structure = create_structure(scene)
+    sweep = sweep_options(scene, stability="off")
+    specs = [parse_method(m, RomOptions()) for m in case.methods]
+    repeats = case.repeats or repeats
+    results = compare(structure, specs, sweep, output=out_dof, reference="exact", repeats=repeats,
+                      reference_ds_max=0.03, progress=lambda m: print(f"friction ({case.key}): {m}", flush=True))
+    frf_png, pareto_png = f"compare_frf_{case.key}_friction.png", f"pareto_{case.key}_friction.png"
+    plot_compare(results, out_dof, img / frf_png, img / pareto_png,
+                 title=f"{case.title}, friction-dominated: error against online time")
+    ref = results[0]
+    by = {r.spec.label: r for r in results}
+    pen = by[PENALTY]
+    exact = create_problem(build_rom(structure, "exact"), sweep.harmonics)
+    solved = {}
+    for r in results[1:]:
+        if not r.failure:
+            print(f"friction ({case.key}): solved curve error of {r.spec.label}", flush=True)
+            solved[r.spec.label] = 100.0 * solved_curve_error(r.frf, exact, ref.frf, out_dof)
+    trade = []
+    for r in results[1:]:
+        if r.spec.method != "cb" or r.failure or pen.failure:
+            continue
+        trade.append((r.spec.label, pen.online_s / r.online_s, solved[PENALTY] <= solved[r.spec.label],
+                      abs(pen.peak_amp_err_pct) <= abs(r.peak_amp_err_pct)))
+    profiles = {label: where_time_goes(structure, sweep, by[label].spec) for label in case.profile
+                if not by[label].failure}
+    st = ref.frf.states
+    shares = ((st == SLIP).mean(axis=(1, 2)).max(), (st == SEPARATED).mean(axis=(1, 2)).max())
+    trunc = float(ref.frf.info["arrays"]["harmonic_error"].max())
+
+    energy = energy_section(case, structure, scene, ref, sweep, out_dof, img) if case.stretches else []
+    h = sweep.harmonics
+    force = float(scene.data["force"]["amplitude"])
     minutes = (time.perf_counter() - t0) / 60
     lines = [
         f"## {case.title[0].upper()}{case.title[1:]}",
@@ -298,28 +343,7 @@ def run_case(case: Case, repeats: int, img: Path) -> list[str]:
                   "same work for every ROM of the same active pairs; the rest, "
                   f"{rest:.2f} s, is per-evaluation work of the interpreter. Without any solve or AFT cost the "
                   f"ratio to cb:20 would still be {rest / c['wall_s']:.2f} (profiled times)."]
-    onset = float(Fe[big].min())
-    lines += [
-        "",
-        "### Energy dissipated per cycle against the forcing",
-        "",
-        f"At the reference's located {force:g} N peak, omega = {omega:.4f} rad/s, continuation in the force scale "
-        f"from {lo:g} to {hi:g} times {force:g} N, one branch per stretch (scales "
-        f"{', '.join(f'{a:g}' for a, _ in case.stretches)} to {hi:g}).  Every pair sticks below "
-        f"{onset:.3g} N (the first force where the dissipation exceeds 1e-6 of its largest value); from there "
-        f"the dissipation grows by a factor of {growth:.3g} to the largest force (the slip share goes from "
-        f"{Se[big].min():.3f} to {Se.max():.3f}; the largest separated share is {Pe.max():.3f}).  "
-        f"{PENALTY} against the exact condensation, interpolated in log-log at the reference's forces: the "
-        f"largest relative difference in energy is {e_err:.2e} over every force where it exceeds 1e-6 of its "
-        f"largest value (at {at_worst:.3g} N), {e_err_main:.2e} where it exceeds 1e-3 of it and {e_err_tenth:.2e} "
-        f"where it exceeds a tenth of it.  The smallest energy per pair and "
-        f"point on the exact branch is {curves['exact'][5]:.2e} J (a passive slider dissipates >= 0).  "
-        f"Time: exact {te:.1f} s, penalty {tp:.1f} s.",
-        "",
-        f"![energy against force](img/{energy_png})",
-        "",
-    ]
-    return lines
+    return lines + energy
 
 
 def main(argv=None) -> int:
