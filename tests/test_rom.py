@@ -19,7 +19,7 @@ from jointfem.models.structure import ContactGroup, Structure
 from jointfem.contact.jenkins import JenkinsPairs
 from jointfem.rom import RomError, RomOptions, build_rom
 from jointfem.analysis.compare import curve_error, parse_method
-from jointfem.rom.penalty import PenaltyProblem
+from jointfem.rom.penalty import PenaltyProblem, PenaltyROM
 from jointfem.results import FrequencyResponse
 
 RAYLEIGH = dict(damping="rayleigh", rayleigh_alpha=4.391, rayleigh_beta=4.368e-6)
@@ -433,6 +433,33 @@ def test_penalty_solves_only_the_active_set_along_a_branch(monkeypatch):
         u = (U.reshape(h.num_hc, -1) @ rom.T.T).ravel()
         uf, _ = solve_newton(newton_system(fp), u, w, x_scale=sc.x, r_scale=sc.r, options=NewtonOptions(tol=1e-12))
         assert np.abs(uf - u).max() < 1e-8 * np.abs(uf).max()
+
+
+def test_penalty_keeps_few_active_sets_and_the_branch_does_not_depend_on_it(monkeypatch):
+    """Only the most recent active sets' residuals and reduced Structures are held (a residual's
+    dense harmonic operators take 240 MB on the 221-pair joint, whose active set changes at nearly
+    every point): with one of each kept, the sweep through slip, lift-off and release is the same
+    branch, bit for bit, as with the defaults."""
+    s = _two_joints()
+    sweep = SweepOptions(1.0, 2.6, Harmonics(5, 256))
+    ref = compute_frf(build_rom(s, "penalty", RomOptions(modes=4)), sweep)
+    kept = []
+    hbm = PenaltyProblem.hbm
+
+    def spy(self):
+        r = hbm(self)
+        kept.append(len(self._hbm))
+        return r
+
+    monkeypatch.setattr(PenaltyProblem, "HBM_KEPT", 1)
+    monkeypatch.setattr(PenaltyROM, "STRUCTURES_KEPT", 1)
+    monkeypatch.setattr(PenaltyProblem, "hbm", spy)
+    rom = build_rom(s, "penalty", RomOptions(modes=4))
+    frf = compute_frf(rom, sweep)
+    assert max(kept) == 1 and len(rom._cache) == 1
+    assert len(set(frf.info["arrays"]["rom_size"])) == 3  # the active set did change
+    np.testing.assert_array_equal(frf.omega, ref.omega)
+    np.testing.assert_array_equal(frf.U, ref.U)
 
 
 def test_paper_tvds_are_the_pod_of_their_snapshots_and_lie_among_the_static_modes():

@@ -56,6 +56,8 @@ class _Group:
 class PenaltyROM(ReducedModel):
     """The offline part: modes, TVDs, static modes and the augmented reduced matrices."""
 
+    STRUCTURES_KEPT = 16  # reduced Structures kept for the most recent active sets
+
     def __init__(self, structure: Structure, options: RomOptions):
         if not structure.contacts:
             raise RomError("penalty: the model has no contact pairs")
@@ -133,6 +135,7 @@ class PenaltyROM(ReducedModel):
         matrix B keeping the active rows of p)."""
         key = np.asarray(mask, bool).tobytes()
         if key in self._cache:
+            self._cache[key] = self._cache.pop(key)  # the most recent last
             return self._cache[key]
         mask = np.asarray(mask, bool)
         keep = self.coordinates(mask)
@@ -164,6 +167,8 @@ class PenaltyROM(ReducedModel):
                       outputs={nm: T[dof].copy() for nm, dof in fs.outputs.items()},
                       info={"kind": "rom:penalty", "active": int(np.count_nonzero(mask))})
         self._cache[key] = s
+        while len(self._cache) > self.STRUCTURES_KEPT:
+            self._cache.pop(next(iter(self._cache)))
         return s
 
     def create_problem(self, harmonics: Harmonics) -> "PenaltyProblem":
@@ -188,6 +193,11 @@ class _Pair:
 class PenaltyProblem(Problem, Adaptive):
     """The online part: HBM of the penalty ROM whose active set follows the branch (it is its own
     ``adaptation``: the continuation's before_step/after_converge hooks)."""
+
+    # residuals kept for the most recent active sets (a step refused, a peak search going back):
+    # each holds its dense harmonic operators, 240 MB at 455 coordinates and H = 3 (the 221-pair
+    # joint), and the active set changes at nearly every point there
+    HBM_KEPT = 4
 
     def __init__(self, rom: PenaltyROM, harmonics: Harmonics, *, friction_tol: float = 1e-9):
         self.rom, self.harmonics = rom, harmonics
@@ -226,9 +236,11 @@ class PenaltyProblem(Problem, Adaptive):
 
     def hbm(self) -> HBMResidual:
         key = self.mask.tobytes()
-        if key not in self._hbm:
-            self._hbm[key] = HBMResidual(self.structure, self.harmonics)
-        return self._hbm[key]
+        hbm = self._hbm.pop(key, None) or HBMResidual(self.structure, self.harmonics)
+        self._hbm[key] = hbm  # the most recent last
+        while len(self._hbm) > self.HBM_KEPT:
+            self._hbm.pop(next(iter(self._hbm)))
+        return hbm
 
     def unknowns(self) -> np.ndarray:
         """The coefficients solved: every harmonic of the modes, the TVDs and the active
