@@ -538,18 +538,17 @@ def _continuum(top: _Table, kind: str, path):
     x_end = L if shape == "bar" else 2 * L - geo["overlap"]
     if x_end / size > 2000 or geo["height"] / size_normal > 200:
         m.fail("size", size, "gives more than 2000 elements along the bars: too fine for this tool")
-    if shape != "bar" and size > geo["overlap"] * (1 + 1e-9):
-        m.fail("size", size, f"must be <= overlap = {geo['overlap']} m (at least one element in the joint)")
+    size_joint = m.number("size_joint", size, gt=0)
+    if geo["width"] / size_joint > 2000:
+        m.fail("size_joint", size_joint, "gives more than 2000 elements across the width: too fine for this tool")
+    for key, h in (("size", size), ("size_joint", size_joint)):  # both mesh the joint along x
+        if shape != "bar" and h > geo["overlap"] * (1 + 1e-9):
+            m.fail(key, h, f"must be <= overlap = {geo['overlap']} m (at least one element in the joint)")
     structured = m.raw("structured", True)
     if not isinstance(structured, bool):
         m.fail("structured", structured, "must be true or false")
-    size_joint = m.number("size_joint", size, gt=0)
-    if shape != "bar" and size_joint > geo["overlap"] * (1 + 1e-9):
-        m.fail("size_joint", size_joint, f"must be <= overlap = {geo['overlap']} m (at least one element in the joint)")
     if size_joint != size and not structured:
         m.fail("size_joint", size_joint, "refines the joint of structured meshes only (structured = true)")
-    if geo["width"] / size_joint > 2000:
-        m.fail("size_joint", size_joint, "gives more than 2000 elements across the width: too fine for this tool")
     mesh_file = m.string("file", None)
     if mesh_file is not None and not Path(mesh_file).is_absolute() and Path(str(path)).is_file():
         mesh_file = str((Path(str(path)).resolve().parent / mesh_file).resolve())  # relative to the scene file

@@ -44,6 +44,15 @@ from .cms import trial_vector_derivatives
 from .common import ReducedModel, RomError, RomOptions, check_modes
 
 
+def _keep_recent(cache: dict, key, value, kept: int):
+    """Store ``value`` under ``key`` as the most recent entry of ``cache`` (dicts keep insertion
+    order; a hit is popped by the caller first), drop the oldest beyond ``kept``, return ``value``."""
+    cache[key] = value
+    while len(cache) > kept:
+        cache.pop(next(iter(cache)))
+    return value
+
+
 @dataclass
 class _Group:
     """Bookkeeping of one physical contact group inside the ROM."""
@@ -135,8 +144,7 @@ class PenaltyROM(ReducedModel):
         matrix B keeping the active rows of p)."""
         key = np.asarray(mask, bool).tobytes()
         if key in self._cache:
-            self._cache[key] = self._cache.pop(key)  # the most recent last
-            return self._cache[key]
+            return _keep_recent(self._cache, key, self._cache.pop(key), self.STRUCTURES_KEPT)
         mask = np.asarray(mask, bool)
         keep = self.coordinates(mask)
         q = keep.size
@@ -166,10 +174,7 @@ class PenaltyROM(ReducedModel):
                       dof_names=tuple(f"penalty.{i}" for i in keep),
                       outputs={nm: T[dof].copy() for nm, dof in fs.outputs.items()},
                       info={"kind": "rom:penalty", "active": int(np.count_nonzero(mask))})
-        self._cache[key] = s
-        while len(self._cache) > self.STRUCTURES_KEPT:
-            self._cache.pop(next(iter(self._cache)))
-        return s
+        return _keep_recent(self._cache, key, s, self.STRUCTURES_KEPT)
 
     def create_problem(self, harmonics: Harmonics) -> "PenaltyProblem":
         return PenaltyProblem(self, harmonics)
@@ -237,10 +242,7 @@ class PenaltyProblem(Problem, Adaptive):
     def hbm(self) -> HBMResidual:
         key = self.mask.tobytes()
         hbm = self._hbm.pop(key, None) or HBMResidual(self.structure, self.harmonics)
-        self._hbm[key] = hbm  # the most recent last
-        while len(self._hbm) > self.HBM_KEPT:
-            self._hbm.pop(next(iter(self._hbm)))
-        return hbm
+        return _keep_recent(self._hbm, key, hbm, self.HBM_KEPT)
 
     def unknowns(self) -> np.ndarray:
         """The coefficients solved: every harmonic of the modes, the TVDs and the active
