@@ -301,6 +301,15 @@ def test_free_free_substructure_refused_before_work(tmp_path):
     build_rom(s, "penalty")  # the stuck joint holds B: the linearised model is regular
 
 
+def test_size_joint_on_an_unstructured_mesh_is_refused(tmp_path):
+    """size_joint sets transfinite divisions: an unstructured mesh has none, so it is refused by name."""
+    data = load_scene(ROOT / "demos" / "lap2d.toml").data
+    data = {**data, "mesh": {**data["mesh"], "structured": False, "size_joint": 0.002}}
+    with pytest.raises(SceneError, match="structured meshes only") as exc:
+        parse_scene(data, tmp_path / "bad.toml")
+    assert "mesh.size_joint" in str(exc.value)
+
+
 @pytest.mark.parametrize("section,key,value,match", [
     ("mesh", "size", 0.05, "at least one element in the joint"),
     ("mesh", "degree", 3, "must be 1 or 2"),
