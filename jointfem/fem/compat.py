@@ -1,11 +1,25 @@
-"""Every dolfinx/PETSc version difference lives here (written against dolfinx 0.5.2, PETSc 3.18).
+"""Every dolfinx version difference lives here (PETSc/SLEPc ones in jointfem.linalg).
 
-The rest of jointfem.fem calls these helpers instead of the version-specific names:
+Tested on two stacks (tools/setup.sh installs either):
 
-* 0.5.2 has ``fem.VectorFunctionSpace(mesh, ("Lagrange", p))``; 0.7 onwards has
-  ``fem.functionspace(mesh, ("Lagrange", p, (gdim,)))``.
-* ``dolfinx.io.gmshio.model_to_mesh`` (0.5.0 onwards) returns (mesh, cell_tags, facet_tags).
-* Index maps: ``size_local``/``local_range`` exist in 0.5.2 and later.
+* Debian 12 (bookworm): dolfinx 0.5.2, ufl 2022.2, gmsh 4.8, PETSc/SLEPc 3.18, numpy 1.24;
+* Debian 13 (trixie): dolfinx 0.9.0, ufl 2024.2, gmsh 4.13, PETSc/SLEPc 3.22, numpy 2.2.
+
+The rest of jointfem.fem calls these helpers instead of the version-specific names.  What differs
+(each branch below names the version that needs it):
+
+* function spaces: 0.5.2 has ``fem.VectorFunctionSpace(mesh, ("Lagrange", p))`` and
+  ``fem.FunctionSpace(mesh, ("Lagrange", p))``; 0.7 onwards has ``fem.functionspace(mesh,
+  ("Lagrange", p, (gdim,)))``, ``VectorFunctionSpace`` is gone (0.8) and ``FunctionSpace`` is still
+  a class there, but its constructor takes a compiled C++ space, so it must not be called.
+
+The same on both (checked with ``help()`` on each stack):
+
+* ``dolfinx.io.gmshio.model_to_mesh(model, comm, rank, gdim=)`` returns (mesh, cell_tags,
+  facet_tags) in 0.5.2 and in 0.9 (0.10 returns a named tuple: not supported here).
+* ``fem.form``, ``fem.petsc.assemble_matrix/assemble_vector`` (PETSc Mat/Vec), ``MeshTags.find``,
+  ``fem.locate_dofs_topological(V, dim, entities)``, ``dofmap.cell_dofs``, index maps'
+  ``size_local``/``num_ghosts``/``local_range``/``local_to_global``.
 """
 from __future__ import annotations
 
@@ -54,22 +68,40 @@ def model_to_mesh(gmsh_model, comm, gdim: int):
     return gmshio.model_to_mesh(gmsh_model, comm, 0, gdim=gdim)
 
 
+def dolfinx_version() -> tuple[int, int]:
+    """(major, minor) of the installed dolfinx."""
+    import dolfinx
+
+    major, minor = dolfinx.__version__.split(".")[:2]
+    return int(major), int(minor)
+
+
+def _spaces_from_classes() -> bool:
+    """True where function spaces are built by calling the classes ``fem.VectorFunctionSpace`` and
+    ``fem.FunctionSpace`` (dolfinx before 0.7: 0.5.2 on bookworm)."""
+    return dolfinx_version() < (0, 7)
+
+
 def vector_space(mesh, degree: int):
+    """Lagrange space of ``degree`` with one component per geometric dimension."""
     import dolfinx.fem as fem
 
-    if hasattr(fem, "VectorFunctionSpace"):
+    if _spaces_from_classes():  # 0.5.2 (bookworm)
         with quiet_jit():
             return fem.VectorFunctionSpace(mesh, ("Lagrange", degree))
-    return fem.functionspace(mesh, ("Lagrange", degree, (mesh.geometry.dim,)))  # pragma: no cover
+    # 0.7 onwards (0.9 on trixie): the element's value shape is part of the tuple
+    return fem.functionspace(mesh, ("Lagrange", degree, (mesh.geometry.dim,)))
 
 
 def scalar_space(mesh, degree: int):
+    """Scalar Lagrange space of ``degree``."""
     import dolfinx.fem as fem
 
-    if hasattr(fem, "FunctionSpace") and callable(fem.FunctionSpace):
+    if _spaces_from_classes():  # 0.5.2 (bookworm)
         with quiet_jit():
             return fem.FunctionSpace(mesh, ("Lagrange", degree))
-    return fem.functionspace(mesh, ("Lagrange", degree))  # pragma: no cover
+    # 0.7 onwards (0.9 on trixie): fem.FunctionSpace is a class whose constructor wants a C++ space
+    return fem.functionspace(mesh, ("Lagrange", degree))
 
 
 def owned_blocks(space) -> tuple[np.ndarray, np.ndarray]:
