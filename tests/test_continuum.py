@@ -185,6 +185,56 @@ def test_exact_condensation_jacobian_fd():
     assert np.abs(fdw - ev.dR_dlam).max() <= 1e-5 * np.abs(ev.dR_dlam).max()
 
 
+def test_exact_condensation_modal_path_equals_the_lu_path():
+    """The modal path (one eigendecomposition, hbm.condensed) gives the sparse-LU path's operators
+    and solution on the 2D lap joint (Rayleigh damping), also with the EPMC's xi; a damping that is
+    not diagonal in the modes falls back to LU, and refuses the modal path when it is required.
+
+    Tolerances: both paths carry the round-off of S = R^-1 of a receptance whose condition number
+    reaches 1e8 (CondensedProblem.tol_floor); measured here S 2e-10, its derivatives and the linear
+    response up to 2e-9."""
+    import scipy.sparse as sp
+
+    from jointfem.hbm.condensed import CondensedProblem, modal_basis
+
+    s = create_structure(load_scene(ROOT / "demos" / "lap2d.toml"))
+    h = Harmonics(2, 128)
+    ex = create_problem(ExactModel(s), h)
+    lu = CondensedProblem(s, h, modal=False)
+    assert ex.branch_info() == {"condensation": "modal"} and lu.branch_info() == {"condensation": "lu"}
+    for w, xi, orders in ((1650.0, 0.0, ()), (1711.3, 0.4, (1,))):
+        for a, b in zip(ex._operators(w, xi, orders), lu._operators(w, xi, orders)):
+            for name, tol in (("S", 1e-8), ("dS", 1e-7), ("dSxi", 1e-7), ("ylin", 1e-7), ("dylin", 1e-7), ("T", 1e-7)):
+                x, y = getattr(a, name), getattr(b, name)
+                if y is None:
+                    assert x is None
+                    continue
+                assert np.abs(x - y).max() <= tol * max(np.abs(y).max(), 1e-300), (w, name)
+    opts = NewtonOptions(tol=1e-12, max_iter=60)
+    w = 1700.0
+
+    def solve(pb):
+        def fun(U, lam):
+            ev = pb.evaluate(U, lam)
+            return ev.R, ev.J, ev.dR_dlam
+        return solve_newton(fun, pb.initial_guess(w), w, x_scale=pb.scales(1550.0, 1800.0).x, r_scale=3.0,
+                            options=opts)[0]
+
+    Y1, Y2 = solve(ex), solve(lu)
+    # each path lands within about 1e-8 of the full-order solution (test_exact_condensation_equals_full_order),
+    # so they are 2e-8 apart at most: measured 1.9e-8
+    assert np.abs(Y1 - Y2).max() <= 3e-8 * np.abs(Y2).max()
+    U1, U2 = ex.full_coefficients(Y1, w), lu.full_coefficients(Y1, w)
+    assert np.abs(U1 - U2).max() <= 1e-8 * np.abs(U2).max()
+    # a damping matrix that is not diagonal in the modes (a dashpot on one DOF)
+    D = s.D + sp.csr_matrix(([1e-3 * s.D.diagonal().max()], ([5], [5])), shape=s.D.shape)
+    odd = dataclasses.replace(s, D=D)
+    assert modal_basis(odd) is None
+    with pytest.raises(LinAlgError, match="not diagonal in the modes"):
+        modal_basis(odd, required=True)
+    assert create_problem(ExactModel(odd), h).branch_info() == {"condensation": "lu"}
+
+
 def test_petsc_and_scipy_backends_agree(lap3d, monkeypatch):
     """SLEPc shift-invert and MUMPS give the modes and static solves of ARPACK and SuperLU, and
     MUMPS on the real block form the complex solves of SuperLU."""

@@ -20,6 +20,17 @@ X = Z^-1 C^T (Z is complex symmetric), Z' = -2 k^2 omega M + i k D.  Every new o
 one sparse complex LU per harmonic (k = 0 once) and size(C) solves each; a new U at the
 same omega costs only the AFT.  It equals the full-order HBM to round-off (tested), with
 (2H+1) * (P m + outputs) unknowns instead of (2H+1) n: the reference for large 3D models.
+
+Where D is diagonal in the modes (Rayleigh damping, or modal damping) and the model has at most
+MODAL_MAX DOFs, the per-omega LUs are replaced by one dense eigendecomposition of the inverse
+problem M v = mu K v (V^T K V = I, V^T M V = diag(mu), V^T D V = diag(d)), which diagonalises
+every harmonic at once:
+
+    V^T Z_k V = diag(z),  z = 1 - (k omega)^2 mu + i k omega (d - xi mu),
+    R_k = B diag(1/z) B^T,  B = C V,   dR_k/domega = -B diag(z'/z^2) B^T,
+
+the same receptance with every mode kept (no truncation: exact to round-off, tested against the
+LU path), at two r x n x r products per harmonic instead of a sparse complex LU and r solves.
 """
 from __future__ import annotations
 
@@ -30,7 +41,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from ..harmonics import Harmonics
-from ..linalg import Factorized, LinAlgError, eigen
+from ..linalg import Factorized, LinAlgError, all_modes_inverse, eigen
 from ..models.structure import Structure
 from .forced import ForcedProblem
 from .problem import (Evaluation, KeepsLastEvaluation, Layout, PointRecord, Problem, Scales, contact_records,
@@ -59,7 +70,10 @@ class CondensedProblem(KeepsLastEvaluation, Problem):
     tol_floor = 1e-8
     _full_problem = None  # the full model's HBM problem, for Hill's method at this problem's points
 
-    def __init__(self, structure: Structure, harmonics: Harmonics):
+    def __init__(self, structure: Structure, harmonics: Harmonics, *, modal: "bool | None | ModalBasis" = None):
+        """``modal``: the modal path (None: where D is diagonal in the modes and n <= MODAL_MAX;
+        True: required, an error where it cannot be taken; False: a sparse LU per harmonic and
+        omega; a ModalBasis: that one, computed offline by ``modal_basis``)."""
         if not structure.contacts:
             raise LinAlgError("exact condensation: the model has no contact pairs")
         for g in structure.contacts:
@@ -90,6 +104,7 @@ class CondensedProblem(KeepsLastEvaluation, Problem):
         self._CT = self.C.T.toarray()
         self._F1 = structure.fc - 1j * structure.fs
         self._ops = None  # (omega, per-harmonic data)
+        self._modal = self._modal_basis(modal)  # (mu, d, V, B, V^T F1) or None
         self._H0 = self._harmonic(0, 0.0)
         # the retained coordinates: every gap component, then the outputs
         names = [f"gap.{i}" for i in range(self.num_gaps)] + out_names
@@ -113,12 +128,29 @@ class CondensedProblem(KeepsLastEvaluation, Problem):
     def num_unknowns(self) -> int:
         return self._num_unknowns
 
+    def branch_info(self) -> dict:
+        """How the harmonics were condensed: "modal" (one eigendecomposition) or "lu" (a sparse LU
+        per harmonic and omega)."""
+        return {"condensation": "modal" if self._modal is not None else "lu"}
+
     # ---- per-omega operators ------------------------------------------------------------
+    def _modal_basis(self, modal):
+        """(mu, d, V, B = C V, V^T F1) of the modal path, or None where it is not taken (see
+        ``modal`` of __init__)."""
+        basis = modal if isinstance(modal, ModalBasis) else None
+        if basis is None and modal is not False:
+            basis = modal_basis(self.full, required=bool(modal))
+        if basis is None:
+            return None
+        return basis.mu, basis.d, basis.V, np.asarray(self.C @ basis.V), basis.V.T @ self._F1
+
     def _harmonic(self, k: int, omega: float, xi: float | None = None, *, recovery: bool = False) -> "_Harmonic":
         """The operators of harmonic k at omega, with the EPMC's self-excitation -xi M u' in the
         damping where xi (1/s) is given: Z_k = K - (k omega)^2 M + i k omega (D - xi M), and dS/dxi
         (zero where xi is None).  ``recovery``: also T = Z^-1 C^T S, which maps the retained
         coordinates to every DOF."""
+        if self._modal is not None:
+            return self._harmonic_modal(k, omega, xi, recovery=recovery)
         s = self.full
         kw = k * omega
         D = s.D - xi * s.M if xi else s.D  # xi None or 0: the structure's own damping
@@ -145,6 +177,45 @@ class CondensedProblem(KeepsLastEvaluation, Problem):
             u = sol[:, self.r]
             ylin = self.C @ u
             dylin = -X.T @ (dZ @ u)
+        else:
+            ylin = dylin = np.zeros(self.r, dtype=complex)
+        return _Harmonic(S, dS, dSxi, ylin, dylin, T)
+
+    def _harmonic_modal(self, k: int, omega: float, xi: float | None, *, recovery: bool) -> "_Harmonic":
+        """_harmonic on the modal path (module docstring): the same operators from the diagonal
+        V^T Z_k V = diag(z)."""
+        mu, d, V, B, f1 = self._modal
+        kw = k * omega
+
+        def receptance(w):  # B diag(w) B^T, B real: one or two real products
+            if np.iscomplexobj(w):
+                return (B * w.real) @ B.T + 1j * ((B * w.imag) @ B.T)
+            return (B * w) @ B.T
+
+        if k == 0:
+            w = np.ones_like(mu)  # V^T K V = I
+        else:
+            dx = d - xi * mu if xi else d
+            z = 1.0 - kw**2 * mu + 1j * kw * dx
+            if np.any(z == 0):
+                raise LinAlgError(f"exact condensation: dynamic stiffness of harmonic {k} at omega = {omega:.6g} "
+                                  "rad/s is singular (an undamped resonance)")
+            w = 1.0 / z
+        R = receptance(w)
+        try:
+            S = np.linalg.inv(R)
+        except np.linalg.LinAlgError as exc:
+            raise LinAlgError(f"exact condensation: the receptance of harmonic {k} on the contact gaps is singular "
+                              f"(two gaps or outputs are linearly dependent)") from exc
+        T = V @ (w[:, None] * (B.T @ S)) if recovery else None
+        zero = np.zeros_like(S)
+        if k == 0:
+            return _Harmonic(S, zero, zero, np.zeros(self.r), np.zeros(self.r), T)
+        q = (-2.0 * k * k * omega * mu + 1j * k * dx) * w * w  # z'/z^2: X^T Z' X = B diag(q) B^T
+        dS = S @ receptance(q) @ S
+        dSxi = zero if xi is None else S @ receptance((-1j * kw) * mu * w * w) @ S
+        if k == 1:
+            ylin, dylin = B @ (w * f1), -(B @ (q * f1))
         else:
             ylin = dylin = np.zeros(self.r, dtype=complex)
         return _Harmonic(S, dS, dSxi, ylin, dylin, T)
@@ -258,6 +329,16 @@ class CondensedProblem(KeepsLastEvaluation, Problem):
         for (g, _, _, _, f0), res in zip(self._groups, ev.contact):
             load += (res.F - f0.reshape(res.F.shape)).reshape(h.num_hc, -1) @ g.gap
         out = np.zeros((h.num_hc, s.num_dofs))
+        if self._modal is not None:  # u_k = V diag(1/z) V^T rhs
+            mu, d, V = self._modal[:3]
+            out[0] = V @ (V.T @ -load[0])
+            for k in range(1, h.H + 1):
+                c, s_ = h.block_cos(k), h.block_sin(k)
+                rhs = -(load[c] - 1j * load[s_]) + (self._F1 if k == 1 else 0.0)
+                z = 1.0 - (k * omega) ** 2 * mu + 1j * k * omega * d
+                u = V @ ((V.T @ rhs.real + 1j * (V.T @ rhs.imag)) / z)
+                out[c], out[s_] = u.real, -u.imag
+            return out.ravel()
         out[0] = Factorized(s.K, what="exact condensation: the static harmonic's recovery").solve(-load[0])
         for k in range(1, h.H + 1):
             c, s_ = h.block_cos(k), h.block_sin(k)
@@ -306,3 +387,69 @@ class CondensedProblem(KeepsLastEvaluation, Problem):
     def record(self, x, omega, evaluation) -> PointRecord:
         states, summary = contact_records(self.harmonics, [g.pairs for g in self.full.contacts], evaluation.contact)
         return PointRecord(states, self.r, summary)
+
+
+# the modal path (module docstring) up to this many DOFs: its eigendecomposition holds three dense
+# n x n arrays (3.5 GB at 12000) and takes minutes there, once
+MODAL_MAX = 13000
+_LAST_BASIS: list = []  # [(K, M, D), ModalBasis] of the last structure whose basis was computed
+
+
+@dataclass(frozen=True)
+class ModalBasis:
+    """Every mode of the inverse problem M v = mu K v: V^T K V = I, V^T M V = diag(mu), and the
+    damping V^T D V = diag(d)."""
+
+    mu: np.ndarray
+    d: np.ndarray
+    V: np.ndarray
+
+
+def modal_basis(structure: Structure, *, required: bool = False) -> ModalBasis | None:
+    """The modal path's basis of ``structure`` (module docstring), or None where it is not taken:
+    more than MODAL_MAX DOFs, K not positive definite, or D not diagonal in the modes.
+    ``required``: raise LinAlgError instead of None, saying why."""
+    n = structure.num_dofs
+    key = (structure.K, structure.M, structure.D)
+    if _LAST_BASIS and all(a is b for a, b in zip(_LAST_BASIS[0], key)):
+        return _LAST_BASIS[1]  # the same matrices as the last call: minutes saved at 12000 DOFs
+    if n > MODAL_MAX:
+        if required:
+            raise LinAlgError(f"exact condensation (modal path): {n} DOFs, more than {MODAL_MAX}")
+        return None
+    try:
+        mu, V = all_modes_inverse(structure.K, structure.M, what="exact condensation (modal path)")
+    except LinAlgError:
+        if required:
+            raise
+        return None
+    d = _diagonal_damping(structure, V, mu)
+    if d is None:
+        if required:
+            raise LinAlgError("exact condensation (modal path): the damping matrix is not diagonal in the modes "
+                              "(neither Rayleigh nor modal damping)")
+        return None
+    _LAST_BASIS[:] = [key, ModalBasis(mu, d, V)]  # holds the matrices too, so that `is` cannot be fooled
+    return _LAST_BASIS[1]
+
+
+def _diagonal_damping(s: Structure, V: np.ndarray, mu: np.ndarray) -> np.ndarray | None:
+    """d with V^T D V = diag(d) (V^T K V = I, V^T M V = diag(mu)), or None where D is not
+    diagonal in the modes.  Rayleigh damping D = alpha M + beta K (d = alpha mu + beta) is
+    recognised from two random probes; other damping up to 4000 DOFs (modal damping) by
+    forming diag(V^T D V) and checking D V c = K V (d c) on a random c."""
+    n = s.num_dofs
+    rng = np.random.default_rng(0)
+    x = rng.standard_normal((n, 2))
+    Dx = np.asarray(s.D @ x).ravel()
+    A = np.column_stack([np.asarray(s.M @ x).ravel(), np.asarray(s.K @ x).ravel()])
+    ab = np.linalg.lstsq(A, Dx, rcond=None)[0]
+    if np.linalg.norm(A @ ab - Dx) <= 1e-12 * np.linalg.norm(Dx):
+        return ab[0] * mu + ab[1]
+    if n > 4000:
+        return None
+    d = np.einsum("ij,ij->j", V, np.asarray(s.D @ V))
+    c = rng.standard_normal(n)
+    lhs = s.D @ (V @ c)
+    rhs = s.K @ (V @ (d * c))
+    return d if np.linalg.norm(lhs - rhs) <= 1e-9 * max(np.linalg.norm(lhs), 1e-300) else None

@@ -15,7 +15,7 @@ import scipy.sparse as sp
 
 from .. import defaults
 from ..harmonics import Harmonics
-from ..hbm.condensed import CondensedProblem
+from ..hbm.condensed import CondensedProblem, ModalBasis, modal_basis
 from ..hbm.forced import ForcedProblem
 from ..hbm.problem import Problem
 from ..linalg import eigen, finite_frequencies
@@ -168,6 +168,15 @@ class ExactModel(Reduction):
     offline_s: float = 0.0
     info: dict = field(default_factory=dict)
     method = "exact"
+    # the modal path's eigendecomposition (hbm.condensed.modal_basis), computed once here, offline,
+    # and shared by every problem created: None computes it where it can be taken, False (or None
+    # where it cannot) keeps the sparse LU path
+    modal: "ModalBasis | bool | None" = field(default=None, repr=False)
+
+    def __post_init__(self):
+        if self.modal is None:
+            self.modal = modal_basis(self.full) or False
+        self.info.setdefault("condensation", "modal" if self.modal is not False else "lu")
 
     @property
     def basis(self) -> None:
@@ -179,4 +188,4 @@ class ExactModel(Reduction):
         return sum(g.gap.shape[0] for g in self.full.contacts) + len(self.full.outputs)
 
     def create_problem(self, harmonics: Harmonics) -> Problem:
-        return CondensedProblem(self.full, harmonics)
+        return CondensedProblem(self.full, harmonics, modal=self.modal)
