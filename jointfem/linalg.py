@@ -189,7 +189,7 @@ def all_modes_inverse(K, M, *, what: str = "model") -> tuple[np.ndarray, np.ndar
         mu, V = sla.eigh(Md, Kd, overwrite_a=True, overwrite_b=True, check_finite=False)
     except np.linalg.LinAlgError as exc:
         raise LinAlgError(f"{what}: K is not positive definite (rigid-body modes?)") from exc
-    return mu[::-1], V[:, ::-1]
+    return mu[::-1].copy(), np.ascontiguousarray(V[:, ::-1])
 
 
 def finite_frequencies(K, M, num: int, *, what: str = "model", at_most: bool = False) -> tuple[np.ndarray, np.ndarray]:

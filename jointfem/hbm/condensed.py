@@ -142,7 +142,7 @@ class CondensedProblem(KeepsLastEvaluation, Problem):
             basis = modal_basis(self.full, required=bool(modal))
         if basis is None:
             return None
-        return basis.mu, basis.d, basis.V, np.asarray(self.C @ basis.V), basis.V.T @ self._F1
+        return basis.mu, basis.d, basis.V, np.ascontiguousarray(self.C @ basis.V), basis.V.T @ self._F1
 
     def _harmonic(self, k: int, omega: float, xi: float | None = None, *, recovery: bool = False) -> "_Harmonic":
         """The operators of harmonic k at omega, with the EPMC's self-excitation -xi M u' in the
