@@ -2,7 +2,7 @@
 PY := .venv/bin/python
 MPIRUN := mpirun $(if $(filter 0,$(shell id -u)),--allow-run-as-root) --oversubscribe
 
-.PHONY: setup demo test test-trixie test-fast bench bench-corners bench-harmonics bench-friction bench-friction-fine bench-stability bench-nma bench-preload brb paper validate clean
+.PHONY: setup demo test test-trixie test-fast bench bench-corners bench-harmonics bench-friction bench-friction-fine bench-exact bench-stability bench-nma bench-preload brb paper validate clean
 
 setup:
 	@bash tools/setup.sh
@@ -54,6 +54,11 @@ bench-friction: setup
 # docs/benchmarks_friction_fine.md)
 bench-friction-fine: setup
 	$(PY) benchmarks/friction.py --cases lap3d_fine --out docs/benchmarks_friction_fine.md
+
+# issue 17's exact condensation that scales: the sparse-LU path against the modal path on the same
+# sweeps (docs/benchmarks_exact.md; a few minutes)
+bench-exact: setup
+	$(PY) benchmarks/exact_paths.py --out docs/benchmarks_exact.md
 
 # issue 15's nonlinear modes: SDOF closed form and harmonics, backbone against forced sweeps, the
 # beam against full order, the 3D lap joint against the exact condensation, and the dissipation of the
