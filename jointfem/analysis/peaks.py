@@ -11,19 +11,26 @@ With a sampled friction law, A is not smooth near a peak: a time sample that cha
 kink in it, and between kinks the curve sags (scallops, about 1e-4 of the amplitude at N = 128;
 4e-6 on the BRB's quick penalty ROM at N = 256, one scallop per 0.077 rad/s, about a step of the
 continuation), so its largest value sits on a kink, there are several local maxima close together,
-and the top's kink may lie on either side of a branch point, or even beyond the largest point's
-neighbours (a scallop can be deeper than the curve falls over a step).  Where the branch points
-fall is a matter of round-off (K's entries changed by 1e-15 of themselves change the steps), so
-the search must not depend on them: the segments from point i-1 to i+1 are one curve in
-s = k + t, sampled at ``grid`` values of t per segment, and searched for its maximum by
-Piyavskii-Shubert branch and bound, with the steepest slope |dA/ds| between neighbouring points
-solved so far as the Lipschitz constant L: a cell between points a and b can reach
-(A_a + A_b + L (b - a)) / 2, and a range that ends at point a can reach A_a + L / grid within a
-sample beyond it.  The cell that can reach highest is halved (a segment is added when an end can),
-until nothing that could beat the best point solved is wider than ``omega_rtol / 2`` of omega:
-the point kept is within that of the top's omega, and two searches of the same branch, whatever
-its points, agree to ``omega_rtol``.  Branch points are samples like the others, so a kink next to
-one is bracketed on both sides.
+and the top's kink may lie on either side of a branch point, between two samples neither of which
+is a local maximum, or beyond the largest point's neighbours (a scallop can be deeper than the
+curve falls over a step).  Where the branch points fall is a matter of round-off (K's entries
+changed by 1e-15 of themselves change the steps), so the search must not depend on them.
+
+The segments from point i-1 to i+1 are one curve in s = k + t, sampled at ``grid`` values of t per
+segment (the branch points among the samples), and searched for its maximum by Piyavskii-Shubert
+branch and bound: a cell between solved points a and b can reach (A_a + A_b + L (b - a)) / 2,
+where L bounds |dA/ds| in it.  A cell whose two ends have the same contact states (every sample of
+every pair) holds no kink once it is narrower than the first samples' spacing: A is smooth there,
+and L is the steepest slope across it or its neighbours (where A is concave its slope lies between
+theirs; where it is convex its largest value is at an end).  Any other cell may hold a kink, and L
+is SAFETY times the steepest slope between neighbouring points solved anywhere so far; a range that
+ends at point a can reach A_a + L / grid within a sample beyond it.  The cell that can reach highest
+is halved (the range goes on by a segment when an end can), until nothing can beat the best point
+solved by more than ``amp_rtol`` (the Newton tolerance: what the solves cannot tell apart) unless it
+is narrower than ``omega_rtol / 2`` of omega.  At a kink the point kept is then within
+omega_rtol / 2 of the top's omega, and two searches of the same branch, whatever its points, agree
+to omega_rtol; at a top so flat that A changes by less than the Newton tolerance over that width,
+omega is known only to where it does.
 
 A largest amplitude at the first or last point is an *edge* of the range, not a peak, and is
 reported as such.
@@ -40,6 +47,11 @@ from ..harmonics import Harmonics
 from ..hbm.problem import PointRecord, Problem, Scales, newton_system
 
 log = logging.getLogger(__name__)
+
+# Where a cell may hold a kink, A may rise in it twice as steeply as anywhere seen so far (with 1,
+# the SDOF oscillator at N = 64 missed a kink by 2.3e-5: the fall past it was steeper, 8.4e-3 per
+# unit of s, than any slope between the samples, 7.2e-3)
+SAFETY = 2.0
 
 
 @dataclass(frozen=True)
@@ -101,20 +113,22 @@ class _Segments:
 
 def locate_peaks(problem: Problem, x: np.ndarray, lam: np.ndarray, residual: np.ndarray, records: list[PointRecord],
                  outputs: dict, *, scales: Scales, lam_scale: float, newton: NewtonOptions, grid: int = 4,
-                 omega_rtol: float = 1e-8) -> dict[str, Peak]:
+                 omega_rtol: float = 1e-8, amp_rtol: float | None = None) -> dict[str, Peak]:
     """The peak of every output (name -> index or recovery row) on a branch of ``problem`` (points
     x (num_points, n) at lam, with their achieved residuals); the branch points solved between the
-    recorded ones are shared by the outputs."""
+    recorded ones are shared by the outputs.  ``amp_rtol``: what the solves cannot tell apart in
+    amplitude (relative; default the Newton tolerance)."""
     segments = _Segments(problem, x, lam, residual, scales=scales, lam_scale=lam_scale, newton=newton)
     peaks = {}
     for name, dof in outputs.items():
         before = segments.solves
-        peaks[name] = _locate(segments, records, dof, grid=grid, omega_rtol=omega_rtol)
+        peaks[name] = _locate(segments, records, dof, grid=grid, omega_rtol=omega_rtol,
+                              amp_rtol=newton.tol if amp_rtol is None else amp_rtol)
         peaks[name] = replace(peaks[name], solves=segments.solves - before)
     return peaks
 
 
-def _locate(segments: _Segments, records, dof, *, grid: int, omega_rtol: float) -> Peak:
+def _locate(segments: _Segments, records, dof, *, grid: int, omega_rtol: float, amp_rtol: float) -> Peak:
     problem, x, lam = segments.problem, segments.x, segments.lam
     h = problem.harmonics
     amp = np.array([output_amplitude(xi, dof, h) for xi in x])
@@ -125,6 +139,7 @@ def _locate(segments: _Segments, records, dof, *, grid: int, omega_rtol: float) 
     adapt = problem.adaptation
     best = (float(amp[i]), float(lam[i]), float(segments.residual[i]))  # amplitude, omega, residual
     A: dict[float, float] = {}  # s -> amplitude of every point solved (s = k + t: t along segment k)
+    states: dict[float, bytes] = {}  # s -> the contact states there, every sample of every group
 
     def value(s: float) -> None:
         """Solve the point at s; every point solved competes for the best."""
@@ -132,6 +147,7 @@ def _locate(segments: _Segments, records, dof, *, grid: int, omega_rtol: float) 
         k = min(int(np.floor(s)), amp.size - 2)
         xs, ls, res = segments.point(k, float(s - k))
         A[s] = a = output_amplitude(xs, dof, h)
+        states[s] = b"".join(c.state_t.tobytes() for c in problem.evaluate(xs, ls, jacobian=False).contact)
         if a > best[0]:
             best = (a, ls, res)
 
@@ -153,15 +169,24 @@ def _locate(segments: _Segments, records, dof, *, grid: int, omega_rtol: float) 
         while True:
             at = np.array(sorted(A))
             a, ds = np.array([A[v] for v in at]), np.diff(at)
-            slope = max(slope, float(np.max(np.abs(np.diff(a)) / ds)))
-            # the most A can reach at that slope in a cell (Piyavskii-Shubert; not a cell narrow
-            # enough already), and within a sample beyond either end of the range
-            reach = (a[:-1] + a[1:] + slope * ds) / 2
+            cell = np.abs(np.diff(a)) / ds  # |dA/ds| across each cell
+            slope = max(slope, float(cell.max()))
+            # A cell narrower than the first samples' spacing whose ends have the same contact
+            # states holds no kink: A is smooth there, and rises at most as steeply as across its
+            # neighbours (concave: its slope lies between theirs; convex: its largest value is at
+            # an end).  Any other cell may hold a kink, up to which A may rise as steeply as it
+            # does anywhere.
+            near = np.maximum(cell, np.maximum(np.append(cell[1:], 0.0), np.append(0.0, cell[:-1])))
+            smooth = np.array([states[u] == states[v] for u, v in zip(at[:-1], at[1:])]) & (ds * grid < 0.75)
+            bound = np.where(smooth, near, SAFETY * slope)
+            # the most A can reach in a cell (Piyavskii-Shubert; not a cell narrow enough already),
+            # and within a sample beyond either end of the range
+            reach = (a[:-1] + a[1:] + bound * ds) / 2
             reach[ds <= np.array([width[int(v)] for v in at[:-1]])] = -np.inf
-            below = a[0] + slope / grid if lo > 0 else -np.inf
-            above = a[-1] + slope / grid if hi < amp.size - 1 else -np.inf
+            below = a[0] + SAFETY * slope / grid if lo > 0 else -np.inf
+            above = a[-1] + SAFETY * slope / grid if hi < amp.size - 1 else -np.inf
             c = int(np.argmax(reach))
-            if max(reach[c], below, above) <= best[0]:
+            if max(reach[c], below, above) <= best[0] * (1.0 + amp_rtol):
                 break
             if below >= max(reach[c], above):  # the range goes on by a segment below
                 lo -= 1
