@@ -8,29 +8,13 @@ a solved branch point, so the peak's amplitude and frequency are those of a solu
 not the branch folds near it.
 
 With a sampled friction law, A is not smooth near a peak: a time sample that changes state puts a
-kink in it, and between kinks the curve sags (scallops, about 1e-4 of the amplitude at N = 128;
-4e-6 on the BRB's quick penalty ROM at N = 256, one scallop per 0.077 rad/s, about a step of the
-continuation), so its largest value sits on a kink, there are several local maxima close together,
-and the top's kink may lie on either side of a branch point, between two samples neither of which
-is a local maximum, or beyond the largest point's neighbours (a scallop can be deeper than the
-curve falls over a step).  Where the branch points fall is a matter of round-off (K's entries
-changed by 1e-15 of themselves change the steps), so the search must not depend on them.
-
-The segments from point i-1 to i+1 are one curve in s = k + t, sampled at ``grid`` values of t per
-segment (the branch points among the samples), and searched for its maximum by Piyavskii-Shubert
-branch and bound: a cell between solved points a and b can reach (A_a + A_b + L (b - a)) / 2,
-where L bounds |dA/ds| in it.  A cell whose two ends have the same contact states (every sample of
-every pair) holds no kink once it is narrower than the first samples' spacing: A is smooth there,
-and L is the steepest slope across it or its neighbours (where A is concave its slope lies between
-theirs; where it is convex its largest value is at an end).  Any other cell may hold a kink, and L
-is SAFETY times the steepest slope between neighbouring points solved anywhere so far; a range that
-ends at point a can reach A_a + L / grid within a sample beyond it.  The cell that can reach highest
-is halved (the range goes on by a segment when an end can), until nothing can beat the best point
-solved by more than ``amp_rtol`` (the Newton tolerance: what the solves cannot tell apart) unless it
-is narrower than ``omega_rtol / 2`` of omega.  At a kink the point kept is then within
-omega_rtol / 2 of the top's omega, and two searches of the same branch, whatever its points, agree
-to omega_rtol; at a top so flat that A changes by less than the Newton tolerance over that width,
-omega is known only to where it does.
+kink in it, and between kinks the curve sags (scallops, about 1e-4 of the amplitude at N = 128),
+so its largest value sits on a kink, and there may be several local maxima close together.  The
+search therefore samples each segment at ``grid`` values of t, and runs Brent's bounded search
+(scipy.optimize.minimize_scalar, robust to kinks in a unimodal interval) around every local
+maximum of the samples that could still beat the best one (a scallop rises to its kink at most as
+steeply as between its samples: a local maximum v_j can reach v_j + max(|v_j - v_j-1|,
+|v_j+1 - v_j|)), until omega is known to ``omega_rtol``; the largest result is the peak.
 
 A largest amplitude at the first or last point is an *edge* of the range, not a peak, and is
 reported as such.
@@ -41,17 +25,13 @@ import logging
 from dataclasses import dataclass, replace
 
 import numpy as np
+from scipy.optimize import minimize_scalar
 
 from ..continuation.arclength import ContinuationError, ConvergenceError, NewtonOptions, correct
 from ..harmonics import Harmonics
 from ..hbm.problem import PointRecord, Problem, Scales, newton_system
 
 log = logging.getLogger(__name__)
-
-# Where a cell may hold a kink, A may rise in it twice as steeply as anywhere seen so far (with 1,
-# the SDOF oscillator at N = 64 missed a kink by 2.3e-5: the fall past it was steeper, 8.4e-3 per
-# unit of s, than any slope between the samples, 7.2e-3)
-SAFETY = 2.0
 
 
 @dataclass(frozen=True)
@@ -113,22 +93,20 @@ class _Segments:
 
 def locate_peaks(problem: Problem, x: np.ndarray, lam: np.ndarray, residual: np.ndarray, records: list[PointRecord],
                  outputs: dict, *, scales: Scales, lam_scale: float, newton: NewtonOptions, grid: int = 4,
-                 omega_rtol: float = 1e-8, amp_rtol: float | None = None) -> dict[str, Peak]:
+                 omega_rtol: float = 1e-8) -> dict[str, Peak]:
     """The peak of every output (name -> index or recovery row) on a branch of ``problem`` (points
     x (num_points, n) at lam, with their achieved residuals); the branch points solved between the
-    recorded ones are shared by the outputs.  ``amp_rtol``: what the solves cannot tell apart in
-    amplitude (relative; default the Newton tolerance)."""
+    recorded ones are shared by the outputs."""
     segments = _Segments(problem, x, lam, residual, scales=scales, lam_scale=lam_scale, newton=newton)
     peaks = {}
     for name, dof in outputs.items():
         before = segments.solves
-        peaks[name] = _locate(segments, records, dof, grid=grid, omega_rtol=omega_rtol,
-                              amp_rtol=newton.tol if amp_rtol is None else amp_rtol)
+        peaks[name] = _locate(segments, records, dof, grid=grid, omega_rtol=omega_rtol)
         peaks[name] = replace(peaks[name], solves=segments.solves - before)
     return peaks
 
 
-def _locate(segments: _Segments, records, dof, *, grid: int, omega_rtol: float, amp_rtol: float) -> Peak:
+def _locate(segments: _Segments, records, dof, *, grid: int, omega_rtol: float) -> Peak:
     problem, x, lam = segments.problem, segments.x, segments.lam
     h = problem.harmonics
     amp = np.array([output_amplitude(xi, dof, h) for xi in x])
@@ -136,70 +114,41 @@ def _locate(segments: _Segments, records, dof, *, grid: int, omega_rtol: float, 
     if i == 0 or i == amp.size - 1:
         return Peak(float(lam[i]), float(amp[i]), located=False, edge=True,
                     reason="largest amplitude at the end of the range: an edge, not a peak")
-    adapt = problem.adaptation
+    lo, hi = i - 1, i + 1  # the two segments around the largest point
+    if problem.adaptation is not None:
+        problem.adaptation.restore(np.logical_or.reduce([r.active for r in records[lo:hi + 1]]))
     best = (float(amp[i]), float(lam[i]), float(segments.residual[i]))  # amplitude, omega, residual
-    A: dict[float, float] = {}  # s -> amplitude of every point solved (s = k + t: t along segment k)
-    states: dict[float, bytes] = {}  # s -> the contact states there, every sample of every group
 
-    def value(s: float) -> None:
-        """Solve the point at s; every point solved competes for the best."""
+    def search(k: int) -> None:
+        """Search the segment between points k and k+1."""
         nonlocal best
-        k = min(int(np.floor(s)), amp.size - 2)
-        xs, ls, res = segments.point(k, float(s - k))
-        A[s] = a = output_amplitude(xs, dof, h)
-        states[s] = b"".join(c.state_t.tobytes() for c in problem.evaluate(xs, ls, jacobian=False).contact)
-        if a > best[0]:
-            best = (a, ls, res)
 
-    def restore(lo: int, hi: int) -> None:
-        if adapt is not None:
-            adapt.restore(np.logical_or.reduce([r.active for r in records[lo:hi + 1]]))
+        def f(t: float) -> float:
+            xs, ls, res = segments.point(k, float(t))
+            return -output_amplitude(xs, dof, h)
 
-    # the width in s below which a cell of segment k is not split: omega_rtol / 2 of omega, so that
-    # the point kept lies within that of the top, and two searches of the branch agree to omega_rtol
-    width = [min(0.5 * omega_rtol * abs(lam[i]) / max(abs(lam[k + 1] - lam[k]), 1e-300), 1e-3)
-             for k in range(amp.size - 1)]
-    lo, hi = i - 1, i + 1  # the segments searched: from point lo to point hi
+        def take(t: float) -> None:
+            nonlocal best
+            xs, ls, res = segments.point(k, t)
+            a = output_amplitude(xs, dof, h)
+            if a > best[0]:
+                best = (a, ls, res)
+
+        ts = np.linspace(0.0, 1.0, grid + 1)
+        A = -np.array([f(t) for t in ts])
+        for t in ts:
+            take(float(t))
+        xatol = omega_rtol * abs(lam[k]) / max(abs(lam[k + 1] - lam[k]), 1e-300)
+        for j in sorted(range(1, grid), key=lambda j: -A[j]):
+            reach = A[j] + max(abs(A[j] - A[j - 1]), abs(A[j + 1] - A[j]))
+            if A[j] >= A[j - 1] and A[j] >= A[j + 1] and (reach > best[0] or A[j] == best[0]):  # may win
+                r = minimize_scalar(f, bounds=(float(ts[j - 1]), float(ts[j + 1])), method="bounded",
+                                    options={"xatol": min(xatol, 1e-3)})
+                take(float(r.x))
+
     try:
-        restore(lo, hi)
         for k in range(lo, hi):
-            for j in range(grid + (k == hi - 1)):
-                value(k + j / grid)
-        slope = 0.0  # the steepest |dA/ds| between neighbouring points solved so far
-        while True:
-            at = np.array(sorted(A))
-            a, ds = np.array([A[v] for v in at]), np.diff(at)
-            cell = np.abs(np.diff(a)) / ds  # |dA/ds| across each cell
-            slope = max(slope, float(cell.max()))
-            # A cell narrower than the first samples' spacing whose ends have the same contact
-            # states holds no kink: A is smooth there, and rises at most as steeply as across its
-            # neighbours (concave: its slope lies between theirs; convex: its largest value is at
-            # an end).  Any other cell may hold a kink, up to which A may rise as steeply as it
-            # does anywhere.
-            near = np.maximum(cell, np.maximum(np.append(cell[1:], 0.0), np.append(0.0, cell[:-1])))
-            smooth = np.array([states[u] == states[v] for u, v in zip(at[:-1], at[1:])]) & (ds * grid < 0.75)
-            bound = np.where(smooth, near, SAFETY * slope)
-            # the most A can reach in a cell (Piyavskii-Shubert; not a cell narrow enough already),
-            # and within a sample beyond either end of the range
-            reach = (a[:-1] + a[1:] + bound * ds) / 2
-            reach[ds <= np.array([width[int(v)] for v in at[:-1]])] = -np.inf
-            below = a[0] + SAFETY * slope / grid if lo > 0 else -np.inf
-            above = a[-1] + SAFETY * slope / grid if hi < amp.size - 1 else -np.inf
-            c = int(np.argmax(reach))
-            if max(reach[c], below, above) <= best[0] * (1.0 + amp_rtol):
-                break
-            if below >= max(reach[c], above):  # the range goes on by a segment below
-                lo -= 1
-                restore(lo, hi)
-                for j in range(grid):
-                    value(lo + j / grid)
-            elif above >= reach[c]:  # or above
-                hi += 1
-                restore(lo, hi)
-                for j in range(1, grid + 1):
-                    value(hi - 1 + j / grid)
-            else:  # the cell that can reach highest is halved
-                value(float((at[c] + at[c + 1]) / 2))
+            search(k)
     except (ConvergenceError, ContinuationError, np.linalg.LinAlgError, RuntimeError) as exc:
         log.warning("peak not located between omega = %.9g and %.9g: %s", lam[lo], lam[hi], exc)
         return Peak(float(lam[i]), float(amp[i]), located=False, reason=str(exc))
