@@ -20,6 +20,14 @@ Round-off sets the floor: the two stacks assemble K with different generated ker
 0.9), whose entries differ by about 1e-15 of K's largest; perturbing K's entries at random by 1e-15
 of themselves moves lap3d's grid amplitudes by 6e-9 to 1.0e-8 of their peak (measured on Debian 12:
 mode 1's w^2 is 1e-7 of the elements' stiffness scale, and the resonance, Q about 100, amplifies it).
+``matrices`` writes lap3d's assembled K, M, D (with the gap rows and force, to check that the DOFs
+are the same) on one stack, and ``swap`` solves lap3d's grid on another with them: measured,
+Debian 12 with Debian 13's matrices agrees with Debian 13 to 5.1e-10 (1.9e-8 with its own), so the
+stacks' difference is the assembly's last bits, not SLEPc, LAPACK, numpy or the HBM.
+
+    python tools/compare_stacks.py matrices --out /tmp/lap3d_trixie.npz          # on one stack
+    python tools/compare_stacks.py swap --matrices /tmp/lap3d_trixie.npz --out /tmp/swap.json  # on the other
+    python tools/compare_stacks.py compare /tmp/swap.json docs/stacks/trixie.json --only lap3d
 
 ``compare`` prints the largest differences and exits 1 where one exceeds its bound: the grid
 amplitudes relative to each output's largest amplitude on the grid (--sweep-tol, 1e-8), the
@@ -51,6 +59,7 @@ BRB_QUICK = ["mesh.size=0.0254", "mesh.size_normal=0.0127"]  # demos/brb.py's QU
 # to 7e-7 (and SLEPc against dense LAPACK on one stack by up to 3e-7), measured on the quick mesh on
 # Debian 12.  They are reported, not judged; the elastic modes are judged at MODES_TOL.
 BRB_RIGID = 6
+LAP3D = ("demos/lap3d.toml", "penalty", 10, 33)  # scene, method, modes, grid omegas
 
 
 def _stack() -> dict:
@@ -73,7 +82,50 @@ def _stack() -> dict:
     return out
 
 
-def _grid_and_sweep(scene_file: str, method: str, modes: int, num: int, sets=()) -> dict:
+def _save_matrices(structure, path: Path) -> None:
+    """The assembled model of a case (K, M, D, the force, every contact group's gap rows) as NPZ."""
+    import scipy.sparse as sp
+
+    G = sp.vstack([g.gap for g in structure.contacts]).tocsr()
+    arrays = {"fc": structure.fc, "fs": structure.fs}
+    for name, A in (("K", structure.K), ("M", structure.M), ("D", structure.D), ("G", G)):
+        A = sp.csr_matrix(A)
+        A.sort_indices()
+        arrays.update({f"{name}_data": A.data, f"{name}_indices": A.indices, f"{name}_indptr": A.indptr,
+                       f"{name}_shape": np.array(A.shape)})
+    np.savez(path, **arrays)
+
+
+def _load_matrix(z, name: str):
+    import scipy.sparse as sp
+
+    return sp.csr_matrix((z[f"{name}_data"], z[f"{name}_indices"], z[f"{name}_indptr"]), shape=tuple(z[f"{name}_shape"]))
+
+
+def _swap_matrices(structure, path: Path):
+    """``structure`` with K, M and D assembled on another stack (``_save_matrices``), after checking
+    that the two are the same problem: the same DOFs in the same order (the gap rows, which say which
+    DOFs meet, and the force equal to 1e-14), so only the assembled matrices differ."""
+    import dataclasses
+
+    import scipy.sparse as sp
+
+    z = np.load(path)
+    G = sp.vstack([g.gap for g in structure.contacts]).tocsr()
+    Gz = _load_matrix(z, "G")
+    same = (Gz.shape == G.shape and abs(Gz - G).max() <= 1e-14 * abs(G).max()
+            and np.allclose(z["fc"], structure.fc, rtol=0, atol=1e-14 * np.abs(structure.fc).max())
+            and np.allclose(z["fs"], structure.fs, rtol=0, atol=1e-14 * max(np.abs(structure.fs).max(), 1.0)))
+    if not same:
+        raise SystemExit(f"compare_stacks: {path}: not the same DOFs, pairs or force as this stack's model "
+                         "(the meshes number their nodes differently?): cannot swap the matrices")
+    return dataclasses.replace(structure, K=_load_matrix(z, "K"), M=_load_matrix(z, "M"), D=_load_matrix(z, "D"))
+
+
+def _grid_and_sweep(scene_file: str, method: str, modes: int, num: int, sets=(), *, matrices: Path | None = None,
+                    sweep: bool = True) -> dict:
+    """The grid of fixed-omega solutions and the arclength sweep of a scene.  ``matrices``: solve
+    with K, M, D from that file (``save_matrices`` on another stack)."""
     from jointfem import app
     from jointfem.analysis.frf import solve_at
     from jointfem.harmonics import Harmonics
@@ -83,6 +135,8 @@ def _grid_and_sweep(scene_file: str, method: str, modes: int, num: int, sets=())
     scene = app.override(load_scene(ROOT / scene_file), list(sets))
     t0 = time.perf_counter()
     structure = create_structure(scene)
+    if matrices is not None:
+        structure = _swap_matrices(structure, matrices)
     model = build_rom(structure, method, RomOptions(modes=modes)) if method != "full" else structure
     s = scene.solver
     h = Harmonics(s.harmonics, s.samples)
@@ -95,18 +149,21 @@ def _grid_and_sweep(scene_file: str, method: str, modes: int, num: int, sets=())
         for k, v in sol.amplitudes.items():
             amps.setdefault(k, []).append(v)
     t1 = time.perf_counter()
+    out = {"scene": scene_file, "sets": list(sets), "method": method, "modes": modes, "dofs": structure.num_dofs,
+           "pairs": structure.num_pairs, "harmonics": s.harmonics, "samples": s.samples,
+           "grid": {"omega": grid.tolist(), "amplitude": amps, "iterations": iters},
+           "matrices_from": str(matrices) if matrices is not None else None}
+    if not sweep:
+        return out | {"seconds": {"grid": t1 - t0}}
     # the arclength sweep over the first quarter of the range, as `jointfem frf` runs it
     quarter = s.omega_start + 0.25 * (s.omega_end - s.omega_start)
     short = app.override(scene, list(sets) + [f"solver.omega_range=[{s.omega_start!r}, {quarter!r}]"])
     sol = app.solve_scene(short, method=method, rom_options=RomOptions(modes=modes), stability="off")
     frf = sol.frf
-    sweep = {"omega": frf.omega.tolist(),
+    arc = {"omega": frf.omega.tolist(),
              "amplitude": {k: frf.amplitude(d).tolist() for k, d in frf.outputs.items()},
              "iterations": np.asarray(frf.iterations).tolist()}
-    return {"scene": scene_file, "sets": list(sets), "method": method, "modes": modes, "dofs": structure.num_dofs,
-            "pairs": structure.num_pairs, "harmonics": s.harmonics, "samples": s.samples,
-            "grid": {"omega": grid.tolist(), "amplitude": amps, "iterations": iters}, "sweep": sweep,
-            "seconds": {"grid": t1 - t0, "sweep": time.perf_counter() - t1}}
+    return out | {"sweep": arc, "seconds": {"grid": t1 - t0, "sweep": time.perf_counter() - t1}}
 
 
 def _brb_modes(sets) -> dict:
@@ -129,7 +186,7 @@ def run(out: Path, full_brb: bool) -> dict:
     data["lap2d"] = _grid_and_sweep("demos/lap2d.toml", "exact", 0, 26)
     print(f"compare_stacks: lap2d done ({time.perf_counter() - t0:.0f} s)", file=sys.stderr, flush=True)
     with tempfile.TemporaryDirectory() as tmp:  # the scene writes its mesh file: not into the repo
-        data["lap3d"] = _grid_and_sweep("demos/lap3d.toml", "penalty", 10, 33, [f"mesh.file='{tmp}/lap3d.msh'"])
+        data["lap3d"] = _grid_and_sweep(*LAP3D, [f"mesh.file='{tmp}/lap3d.msh'"])
     print(f"compare_stacks: lap3d done ({time.perf_counter() - t0:.0f} s)", file=sys.stderr, flush=True)
     data["brb"] = _brb_modes(BRB_QUICK)
     if full_brb:
@@ -141,11 +198,39 @@ def run(out: Path, full_brb: bool) -> dict:
     return data
 
 
-def compare(a: dict, b: dict, sweep_tol: float = SWEEP_TOL, modes_tol: float = MODES_TOL) -> tuple[list[str], bool]:
-    """Lines of a report and whether every judged difference is within its bound."""
+def save_matrices(out: Path) -> None:
+    """lap3d's assembled model on this stack, for ``swap`` on another."""
+    from jointfem import app
+    from jointfem.scene import create_structure, load_scene
+
+    with tempfile.TemporaryDirectory() as tmp:
+        scene = app.override(load_scene(ROOT / LAP3D[0]), [f"mesh.file='{tmp}/lap3d.msh'"])
+        out.parent.mkdir(parents=True, exist_ok=True)
+        _save_matrices(create_structure(scene), out)
+    print(f"compare_stacks: wrote {out}", file=sys.stderr)
+
+
+def swap(matrices: Path, out: Path) -> dict:
+    """lap3d's grid on this stack with K, M and D assembled on another (``matrices``
+    there): with the other stack's JSON, ``compare --only lap3d`` then says how much of the stacks'
+    difference is the assembly (FFCx's kernels) and how much the rest (SLEPc, LAPACK, numpy, the HBM)."""
+    t0 = time.perf_counter()
+    with tempfile.TemporaryDirectory() as tmp:
+        data = {"stack": _stack(), "date": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()),
+                "lap3d": _grid_and_sweep(*LAP3D, [f"mesh.file='{tmp}/lap3d.msh'"], matrices=matrices, sweep=False)}
+    data["seconds"] = time.perf_counter() - t0
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps(data, indent=1))
+    print(f"compare_stacks: wrote {out} ({data['seconds']:.0f} s)", file=sys.stderr)
+    return data
+
+
+def compare(a: dict, b: dict, sweep_tol: float = SWEEP_TOL, modes_tol: float = MODES_TOL,
+            only: tuple[str, ...] = ("lap2d", "lap3d", "brb", "brb_full")) -> tuple[list[str], bool]:
+    """Lines of a report and whether every judged difference (of the cases in ``only``) is within its bound."""
     ok = True
     lines = [f"A: {a['stack']}", f"B: {b['stack']}"]
-    for case in ("lap2d", "lap3d"):
+    for case in (c for c in ("lap2d", "lap3d") if c in only):
         if case not in a or case not in b:
             lines.append(f"{case}: missing in {'A' if case not in a else 'B'}")
             ok = False
@@ -162,6 +247,8 @@ def compare(a: dict, b: dict, sweep_tol: float = SWEEP_TOL, modes_tol: float = M
             ok &= good
             lines.append(f"{case} {name}: grid of {x.size} omegas, largest |A - B| / max|A| = {d:.2e} "
                          f"({'within' if good else 'OVER'} {sweep_tol:g}); peak on the grid {x.max():.6e} m")
+        if "sweep" not in a[case] or "sweep" not in b[case]:
+            continue
         sa, sb = a[case]["sweep"], b[case]["sweep"]
         n = min(len(sa["omega"]), len(sb["omega"]))
         dw = float(np.abs(np.array(sa["omega"][:n]) - np.array(sb["omega"][:n])).max()) if n else float("nan")
@@ -171,7 +258,7 @@ def compare(a: dict, b: dict, sweep_tol: float = SWEEP_TOL, modes_tol: float = M
             x, y = np.array(sa["amplitude"][name][:n]), np.array(sb["amplitude"][name][:n])
             lines.append(f"{case} arclength sweep {name}: largest |A - B| / max|A| = "
                          f"{float(np.abs(x - y).max() / np.abs(x).max()):.2e} (reported, not judged)")
-    for case in ("brb", "brb_full"):
+    for case in (c for c in ("brb", "brb_full") if c in only):
         if case not in a or case not in b:
             if case == "brb":
                 lines.append("brb: missing")
@@ -201,21 +288,34 @@ def main(argv=None) -> int:
     r = sub.add_parser("run", help="compute this stack's numbers")
     r.add_argument("--out", required=True, type=Path)
     r.add_argument("--full-brb", action="store_true", help="also the full BRB mesh (217 pairs; minutes)")
+    m = sub.add_parser("matrices", help="write lap3d's K, M, D (and its gap rows and force) to an NPZ")
+    m.add_argument("--out", required=True, type=Path)
+    w = sub.add_parser("swap", help="lap3d's grid here with K, M, D from another stack's `matrices`")
+    w.add_argument("--matrices", required=True, type=Path)
+    w.add_argument("--out", required=True, type=Path)
     c = sub.add_parser("compare", help="compare two stacks' JSON files")
     c.add_argument("a", type=Path)
     c.add_argument("b", type=Path)
     c.add_argument("--sweep-tol", type=float, default=SWEEP_TOL)
     c.add_argument("--modes-tol", type=float, default=MODES_TOL)
+    c.add_argument("--only", nargs="+", default=["lap2d", "lap3d", "brb", "brb_full"],
+                   choices=["lap2d", "lap3d", "brb", "brb_full"], help="judge these cases only")
     args = ap.parse_args(argv)
     if args.cmd == "run":
         run(args.out, args.full_brb)
+        return 0
+    if args.cmd == "matrices":
+        save_matrices(args.out)
+        return 0
+    if args.cmd == "swap":
+        swap(args.matrices, args.out)
         return 0
     try:
         a, b = (json.loads(p.read_text()) for p in (args.a, args.b))
     except (OSError, ValueError) as exc:
         print(f"compare_stacks: cannot read the two JSON files: {exc}", file=sys.stderr)
         return 2
-    lines, ok = compare(a, b, args.sweep_tol, args.modes_tol)
+    lines, ok = compare(a, b, args.sweep_tol, args.modes_tol, tuple(args.only))
     print("\n".join(lines))
     return 0 if ok else 1
 
