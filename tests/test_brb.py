@@ -61,3 +61,52 @@ def test_brb_sweeps_on_two_ranks_as_in_serial(tmp_path):
     assert pa["located"] and pb["located"]
     assert pb["omega_rad_s"] == pytest.approx(pa["omega_rad_s"], rel=1e-8)
     assert pb["amp1_m"] == pytest.approx(pa["amp1_m"], rel=1e-8)
+
+
+@pytest.mark.slow
+def test_brb_peak_does_not_depend_on_round_off_in_K():
+    """The two-rank test's failure on Debian 13 reproduced in one process: the quick BRB's penalty
+    ROM swept as is and with K's entries changed at random by up to 1e-15 of themselves (seeds 7
+    and 12), which moves the continuation's points near the top by hundredths of a rad/s, as two
+    ranks did.  The tip's scallops (kinks where a sample changes state) are 4e-6 of the amplitude
+    deep, one per 0.077 rad/s.  On Debian 12 the largest point falls at 1138.1395, 1138.0964 and
+    1138.1802 rad/s, and the search that refined only the interior maxima of each segment's samples
+    kept the branch point just past the top's kink with seed 7 (1138.09639, 3.0e-6 off, as serially
+    on Debian 13, whose unperturbed run puts its largest point there) and found the next scallop
+    with seed 12 (1138.17245, 7e-5 off), against 1138.09296.  The top itself moves by 4e-11 under
+    these changes (located to 1e-11); each search keeps a point within omega_rtol / 2 = 5e-9 of its
+    omega, so they agree to 1e-8 (measured on Debian 12: 1.2e-9 in omega, 5e-10 in amplitude, and
+    over 16 seeds 3.4e-9 and 1.6e-9; on Debian 13, 2.3e-9 in omega over the unperturbed run and 5
+    seeds).  About 25 s."""
+    pytest.importorskip("dolfinx")
+    from dataclasses import replace
+
+    import numpy as np
+
+    from jointfem import app
+    from jointfem.analysis.frf import compute_frf
+    from jointfem.analysis.peaks import output_amplitude
+    from jointfem.rom import RomOptions, build_rom
+    from jointfem.scene import create_structure, load_scene
+
+    scene = app.override(load_scene(ROOT / "demos" / "brb.toml"), QUICK[1::2])
+    structure = create_structure(scene)
+    peaks, largest = [], []
+    for seed in (None, 7, 12):
+        s = structure
+        if seed is not None:
+            K = structure.K.tocsr()
+            E = K.copy()
+            E.data = E.data * np.random.default_rng(seed).uniform(-1e-15, 1e-15, E.data.size)
+            s = replace(structure, K=(K + 0.5 * (E + E.T)).tocsr())
+        frf = compute_frf(build_rom(s, "penalty", RomOptions(modes=12)), app.sweep_options(scene))
+        pk = frf.info["peaks"]["tip.uy"]
+        assert pk.located and not pk.edge
+        peaks.append((pk.omega, pk.amplitude))
+        amp = [output_amplitude(x, frf.outputs["tip.uy"], frf.harmonics) for x in frf.U]
+        largest.append(frf.omega[int(np.argmax(amp))])
+    assert np.ptp(largest) > 1e-2  # rad/s: the points near the top did move
+    omega, amp = np.array(peaks).T
+    assert 1130 < omega[0] < 1145
+    assert np.ptp(omega) / omega.min() < 1e-8, omega
+    assert np.ptp(amp) / amp.min() < 1e-8, amp

@@ -8,13 +8,28 @@ a solved branch point, so the peak's amplitude and frequency are those of a solu
 not the branch folds near it.
 
 With a sampled friction law, A is not smooth near a peak: a time sample that changes state puts a
-kink in it, and between kinks the curve sags (scallops, about 1e-4 of the amplitude at N = 128),
-so its largest value sits on a kink, and there may be several local maxima close together.  The
-search therefore samples each segment at ``grid`` values of t, and runs Brent's bounded search
-(scipy.optimize.minimize_scalar, robust to kinks in a unimodal interval) around every local
-maximum of the samples that could still beat the best one (a scallop rises to its kink at most as
-steeply as between its samples: a local maximum v_j can reach v_j + max(|v_j - v_j-1|,
-|v_j+1 - v_j|)), until omega is known to ``omega_rtol``; the largest result is the peak.
+kink in it, and between kinks the curve sags (scallops, about 1e-4 of the amplitude at N = 128;
+4e-6 on the BRB's quick penalty ROM at N = 256, one scallop per 0.077 rad/s, about a step of the
+continuation), so its largest value sits on a kink, there are several local maxima close together,
+and the top's kink may lie on either side of a branch point, between two samples neither of which
+is a local maximum, or beyond the largest point's neighbours (a scallop can be deeper than the
+curve falls over a step).  Where the branch points fall is a matter of round-off (K's entries
+changed by 1e-15 of themselves change the steps), so the search must not depend on them.
+
+The segments from point i-1 to i+1 are one curve in s = k + t, sampled at ``grid`` values of t per
+segment (the branch points among the samples), and searched for its maximum by Piyavskii-Shubert
+branch and bound: a cell between solved points a and b can reach (A_a + A_b + L (b - a)) / 2,
+where L bounds |dA/ds| in it.  A cell whose two ends have the same contact states (every sample of
+every pair) holds no kink once it is narrower than the first samples' spacing: A is smooth there,
+and L is the steepest slope across it or its neighbours (where A is concave its slope lies between
+theirs; where it is convex its largest value is at an end).  Any other cell may hold a kink, and L
+is SAFETY times the steepest slope between neighbouring points solved anywhere so far; a range that
+ends at point a can reach A_a + L / grid within a sample beyond it.  The cell that can reach highest
+is halved (the range goes on by a segment when an end can), until nothing that could beat the best
+point solved is wider than ``omega_rtol / 2`` of omega: the point kept is within that of the top's
+omega, and two searches of the same branch, whatever its points, agree to ``omega_rtol`` (on a flat
+top, as far as the amplitudes solved can tell: on lap2d's exact condensation they scatter by
+2.4e-12 of themselves near the top, which with the curvature there blurs its omega by about 3.5e-8).
 
 A largest amplitude at the first or last point is an *edge* of the range, not a peak, and is
 reported as such.
@@ -25,13 +40,18 @@ import logging
 from dataclasses import dataclass, replace
 
 import numpy as np
-from scipy.optimize import minimize_scalar
 
 from ..continuation.arclength import ContinuationError, ConvergenceError, NewtonOptions, correct
 from ..harmonics import Harmonics
 from ..hbm.problem import PointRecord, Problem, Scales, newton_system
 
 log = logging.getLogger(__name__)
+
+# Where a cell may hold a kink, A may rise in it twice as steeply as anywhere seen so far (with 1,
+# the SDOF oscillator at N = 64, F = 0.2 kept a branch point 2.3e-5 below the top in amplitude: the
+# fall past the top's kink, 8.4e-3 per unit of s, was steeper than any slope between the points
+# solved, 7.4e-3)
+SAFETY = 2.0
 
 
 @dataclass(frozen=True)
@@ -114,41 +134,70 @@ def _locate(segments: _Segments, records, dof, *, grid: int, omega_rtol: float) 
     if i == 0 or i == amp.size - 1:
         return Peak(float(lam[i]), float(amp[i]), located=False, edge=True,
                     reason="largest amplitude at the end of the range: an edge, not a peak")
-    lo, hi = i - 1, i + 1  # the two segments around the largest point
-    if problem.adaptation is not None:
-        problem.adaptation.restore(np.logical_or.reduce([r.active for r in records[lo:hi + 1]]))
+    adapt = problem.adaptation
     best = (float(amp[i]), float(lam[i]), float(segments.residual[i]))  # amplitude, omega, residual
+    A: dict[float, float] = {}  # s -> amplitude of every point solved (s = k + t: t along segment k)
+    states: dict[float, bytes] = {}  # s -> the contact states there, every sample of every group
 
-    def search(k: int) -> None:
-        """Search the segment between points k and k+1."""
+    def value(s: float) -> None:
+        """Solve the point at s; every point solved competes for the best."""
         nonlocal best
+        k = min(int(np.floor(s)), amp.size - 2)
+        xs, ls, res = segments.point(k, float(s - k))
+        A[s] = a = output_amplitude(xs, dof, h)
+        states[s] = b"".join(c.state_t.tobytes() for c in problem.evaluate(xs, ls, jacobian=False).contact)
+        if a > best[0]:
+            best = (a, ls, res)
 
-        def f(t: float) -> float:
-            xs, ls, res = segments.point(k, float(t))
-            return -output_amplitude(xs, dof, h)
+    def restore(lo: int, hi: int) -> None:
+        if adapt is not None:
+            adapt.restore(np.logical_or.reduce([r.active for r in records[lo:hi + 1]]))
 
-        def take(t: float) -> None:
-            nonlocal best
-            xs, ls, res = segments.point(k, t)
-            a = output_amplitude(xs, dof, h)
-            if a > best[0]:
-                best = (a, ls, res)
-
-        ts = np.linspace(0.0, 1.0, grid + 1)
-        A = -np.array([f(t) for t in ts])
-        for t in ts:
-            take(float(t))
-        xatol = omega_rtol * abs(lam[k]) / max(abs(lam[k + 1] - lam[k]), 1e-300)
-        for j in sorted(range(1, grid), key=lambda j: -A[j]):
-            reach = A[j] + max(abs(A[j] - A[j - 1]), abs(A[j + 1] - A[j]))
-            if A[j] >= A[j - 1] and A[j] >= A[j + 1] and (reach > best[0] or A[j] == best[0]):  # may win
-                r = minimize_scalar(f, bounds=(float(ts[j - 1]), float(ts[j + 1])), method="bounded",
-                                    options={"xatol": min(xatol, 1e-3)})
-                take(float(r.x))
-
+    # the width in s below which a cell of segment k is not split: omega_rtol / 2 of omega, so that
+    # the point kept lies within that of the top, and two searches of the branch agree to omega_rtol
+    width = [min(0.5 * omega_rtol * abs(lam[i]) / max(abs(lam[k + 1] - lam[k]), 1e-300), 1e-3)
+             for k in range(amp.size - 1)]
+    lo, hi = i - 1, i + 1  # the segments searched: from point lo to point hi
     try:
+        restore(lo, hi)
         for k in range(lo, hi):
-            search(k)
+            for j in range(grid + (k == hi - 1)):
+                value(k + j / grid)
+        slope = 0.0  # the steepest |dA/ds| between neighbouring points solved so far
+        while True:
+            at = np.array(sorted(A))
+            a, ds = np.array([A[v] for v in at]), np.diff(at)
+            cell = np.abs(np.diff(a)) / ds  # |dA/ds| across each cell
+            slope = max(slope, float(cell.max()))
+            # A cell narrower than the first samples' spacing whose ends have the same contact
+            # states holds no kink: A is smooth there, and rises at most as steeply as across its
+            # neighbours (concave: its slope lies between theirs; convex: its largest value is at
+            # an end).  Any other cell may hold a kink, up to which A may rise as steeply as it
+            # does anywhere.
+            near = np.maximum(cell, np.maximum(np.append(cell[1:], 0.0), np.append(0.0, cell[:-1])))
+            smooth = np.array([states[u] == states[v] for u, v in zip(at[:-1], at[1:])]) & (ds * grid < 0.75)
+            bound = np.where(smooth, near, SAFETY * slope)
+            # the most A can reach in a cell (Piyavskii-Shubert; not a cell narrow enough already),
+            # and within a sample beyond either end of the range
+            reach = (a[:-1] + a[1:] + bound * ds) / 2
+            reach[ds <= np.array([width[int(v)] for v in at[:-1]])] = -np.inf
+            below = a[0] + SAFETY * slope / grid if lo > 0 else -np.inf
+            above = a[-1] + SAFETY * slope / grid if hi < amp.size - 1 else -np.inf
+            c = int(np.argmax(reach))
+            if max(reach[c], below, above) <= best[0]:
+                break
+            if below >= max(reach[c], above):  # the range goes on by a segment below
+                lo -= 1
+                restore(lo, hi)
+                for j in range(grid):
+                    value(lo + j / grid)
+            elif above >= reach[c]:  # or above
+                hi += 1
+                restore(lo, hi)
+                for j in range(1, grid + 1):
+                    value(hi - 1 + j / grid)
+            else:  # the cell that can reach highest is halved
+                value(float((at[c] + at[c + 1]) / 2))
     except (ConvergenceError, ContinuationError, np.linalg.LinAlgError, RuntimeError) as exc:
         log.warning("peak not located between omega = %.9g and %.9g: %s", lam[lo], lam[hi], exc)
         return Peak(float(lam[i]), float(amp[i]), located=False, reason=str(exc))
