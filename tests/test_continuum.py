@@ -185,7 +185,7 @@ def test_exact_condensation_jacobian_fd():
     assert np.abs(fdw - ev.dR_dlam).max() <= 1e-5 * np.abs(ev.dR_dlam).max()
 
 
-def test_exact_condensation_modal_path_equals_the_lu_path():
+def test_exact_condensation_modal_path_equals_the_lu_path(monkeypatch):
     """The modal path (one eigendecomposition, hbm.condensed) gives the sparse-LU path's operators
     and solution on the 2D lap joint (Rayleigh damping), also with the EPMC's xi; a damping that is
     not diagonal in the modes falls back to LU, and refuses the modal path when it is required.
@@ -195,6 +195,7 @@ def test_exact_condensation_modal_path_equals_the_lu_path():
     response up to 2e-9."""
     import scipy.sparse as sp
 
+    from jointfem.hbm import condensed
     from jointfem.hbm.condensed import CondensedProblem, modal_basis
 
     s = create_structure(load_scene(ROOT / "demos" / "lap2d.toml"))
@@ -202,14 +203,30 @@ def test_exact_condensation_modal_path_equals_the_lu_path():
     ex = create_problem(ExactModel(s), h)
     lu = CondensedProblem(s, h, modal=False)
     assert ex.branch_info() == {"condensation": "modal"} and lu.branch_info() == {"condensation": "lu"}
-    for w, xi, orders in ((1650.0, 0.0, ()), (1711.3, 0.4, (1,))):
-        for a, b in zip(ex._operators(w, xi, orders), lu._operators(w, xi, orders)):
+    # Rayleigh damping is recognised, so the stiff modes' share is summed as a series (_stiff); the
+    # third omega is above what the first split covers, so the split is formed again
+    alpha, beta = ex._modal[5]
+    assert abs(alpha / 4.391 - 1) < 1e-6 and abs(beta / 4.368e-6 - 1) < 1e-6
+    cuts = []
+    for w, xi, orders in ((1650.0, 0.0, ()), (1711.3, 0.4, (1,)), (3000.0, 0.0, ())):
+        ops = ex._operators(w, xi, orders)
+        cuts.append(ex._split[0])
+        assert ex._split[3].sum() <= 12  # modes summed one by one at each omega, of 720: measured 8 and 10
+        for a, b in zip(ops, lu._operators(w, xi, orders)):
             for name, tol in (("S", 1e-8), ("dS", 1e-7), ("dSxi", 1e-7), ("ylin", 1e-7), ("dylin", 1e-7), ("T", 1e-7)):
                 x, y = getattr(a, name), getattr(b, name)
                 if y is None:
                     assert x is None
                     continue
                 assert np.abs(x - y).max() <= tol * max(np.abs(y).max(), 1e-300), (w, name)
+    assert cuts[0] == cuts[1] > cuts[2]
+    # the series is what makes it exact: cut after its second term, S is off by 100 times the
+    # tolerance above at least (measured 5.9e-6 of its largest entry)
+    short = create_problem(ExactModel(s), h)
+    monkeypatch.setattr(condensed, "SPLIT_ORDER", 1)
+    S1, S2 = short._operators(1650.0)[1].S, lu._operators(1650.0)[1].S
+    assert np.abs(S1 - S2).max() > 1e-6 * np.abs(S2).max()
+    monkeypatch.undo()
     opts = NewtonOptions(tol=1e-12, max_iter=60)
     w = 1700.0
 

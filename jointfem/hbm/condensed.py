@@ -31,6 +31,8 @@ every harmonic at once:
 
 the same receptance with every mode kept (no truncation: exact to round-off, tested against the
 LU path), at two r x n x r products per harmonic instead of a sparse complex LU and r solves.
+With Rayleigh damping the modes far above k omega are summed as a power series whose r x r terms
+are formed once (``CondensedProblem._stiff``), so a new omega costs products over the low modes only.
 """
 from __future__ import annotations
 
@@ -104,7 +106,8 @@ class CondensedProblem(KeepsLastEvaluation, Problem):
         self._CT = self.C.T.toarray()
         self._F1 = structure.fc - 1j * structure.fs
         self._ops = None  # (omega, per-harmonic data)
-        self._modal = self._modal_basis(modal)  # (mu, d, V, B, V^T F1) or None
+        self._modal = self._modal_basis(modal)  # (mu, d, V, B, V^T F1, rayleigh) or None
+        self._split = None  # the modal path's stiff modes summed as a series (_stiff)
         self._H0 = self._harmonic(0, 0.0)
         # the retained coordinates: every gap component, then the outputs
         names = [f"gap.{i}" for i in range(self.num_gaps)] + out_names
@@ -142,7 +145,8 @@ class CondensedProblem(KeepsLastEvaluation, Problem):
             basis = modal_basis(self.full, required=bool(modal))
         if basis is None:
             return None
-        return basis.mu, basis.d, basis.V, np.ascontiguousarray(self.C @ basis.V), basis.V.T @ self._F1
+        return (basis.mu, basis.d, basis.V, np.ascontiguousarray(self.C @ basis.V), basis.V.T @ self._F1,
+                basis.rayleigh)
 
     def _harmonic(self, k: int, omega: float, xi: float | None = None, *, recovery: bool = False) -> "_Harmonic":
         """The operators of harmonic k at omega, with the EPMC's self-excitation -xi M u' in the
@@ -183,17 +187,19 @@ class CondensedProblem(KeepsLastEvaluation, Problem):
 
     def _harmonic_modal(self, k: int, omega: float, xi: float | None, *, recovery: bool) -> "_Harmonic":
         """_harmonic on the modal path (module docstring): the same operators from the diagonal
-        V^T Z_k V = diag(z)."""
-        mu, d, V, B, f1 = self._modal
+        V^T Z_k V = diag(z); with Rayleigh damping, the stiff modes' share summed as a series
+        (``_stiff``)."""
+        mu, d, V, B, f1, rayleigh = self._modal
         kw = k * omega
 
-        def receptance(w):  # B diag(w) B^T, B real: one or two real products
+        def receptance(w, Bw=B):  # Bw diag(w) Bw^T, Bw real: one or two real products
             if np.iscomplexobj(w):
-                return (B * w.real) @ B.T + 1j * ((B * w.imag) @ B.T)
-            return (B * w) @ B.T
+                return (Bw * w.real) @ Bw.T + 1j * ((Bw * w.imag) @ Bw.T)
+            return (Bw * w) @ Bw.T
 
         if k == 0:
             w = np.ones_like(mu)  # V^T K V = I
+            R = receptance(w)
         else:
             dx = d - xi * mu if xi else d
             z = 1.0 - kw**2 * mu + 1j * kw * dx
@@ -201,7 +207,15 @@ class CondensedProblem(KeepsLastEvaluation, Problem):
                 raise LinAlgError(f"exact condensation: dynamic stiffness of harmonic {k} at omega = {omega:.6g} "
                                   "rad/s is singular (an undamped resonance)")
             w = 1.0 / z
-        R = receptance(w)
+            q = (-2.0 * k * k * omega * mu + 1j * k * dx) * w * w  # z'/z^2: X^T Z' X = B diag(q) B^T
+            qxi = (-1j * kw) * mu * w * w
+            stiff = self._stiff(k, omega, xi or 0.0) if rayleigh is not None else None
+            if stiff is None:
+                R = receptance(w)
+            else:
+                low, Bl, c, cw, cxi = stiff
+                P, g = self._split[1], self._split[2]
+                R = receptance(w[low], Bl) + _series(c, P)
         try:
             S = np.linalg.inv(R)
         except np.linalg.LinAlgError as exc:
@@ -211,14 +225,60 @@ class CondensedProblem(KeepsLastEvaluation, Problem):
         zero = np.zeros_like(S)
         if k == 0:
             return _Harmonic(S, zero, zero, np.zeros(self.r), np.zeros(self.r), T)
-        q = (-2.0 * k * k * omega * mu + 1j * k * dx) * w * w  # z'/z^2: X^T Z' X = B diag(q) B^T
-        dS = S @ receptance(q) @ S
-        dSxi = zero if xi is None else S @ receptance((-1j * kw) * mu * w * w) @ S
-        if k == 1:
-            ylin, dylin = B @ (w * f1), -(B @ (q * f1))
-        else:
+        if stiff is None:
+            dS = S @ receptance(q) @ S
+            dSxi = zero if xi is None else S @ receptance(qxi) @ S
+            ylin, dylin = (B @ (w * f1), -(B @ (q * f1))) if k == 1 else (None, None)
+        else:  # receptance(q) = -dR/domega, receptance(qxi) = -dR/dxi
+            dS = S @ (receptance(q[low], Bl) - _series(cw, P)) @ S
+            dSxi = zero if xi is None else S @ (receptance(qxi[low], Bl) - _series(cxi, P)) @ S
+            if k == 1:
+                fl = f1[low]
+                ylin, dylin = Bl @ (w[low] * fl) + c @ g, -(Bl @ (q[low] * fl)) + cw @ g
+        if k != 1:
             ylin = dylin = np.zeros(self.r, dtype=complex)
         return _Harmonic(S, dS, dSxi, ylin, dylin, T)
+
+    def _stiff(self, k: int, omega: float, xi: float):
+        """The modal path's split at harmonic k (Rayleigh damping D = alpha M + beta K): with
+        a = 1 + i k omega beta and s = (k omega)^2 - i k omega (alpha - xi), every mode's
+        z = a - mu s, so a mode with |mu s / a| <= SPLIT_RHO has
+
+            1/z = (1/a) sum_p (mu s / a)^p,  p = 0 .. SPLIT_ORDER  (remainder below 2e-16 of it),
+
+        and the stiff modes' share of R_k is sum_p c_p P_p with P_p = B_s diag((mu_s/cut)^p) B_s^T,
+        c_p = (s cut / a)^p / a: r x r matrices formed once, so a new omega costs products over the
+        low modes only.  Returns (low mask, B_low, c, dc/domega, dc/dxi), forming the split again
+        (cut = SPLIT_RHO / (2 |s/a|) at the highest harmonic) when this harmonic's |s/a| exceeds
+        what the current one covers; None where no mode is stiff enough to gain from it."""
+        mu, f1, B = self._modal[0], self._modal[4], self._modal[3]
+        alpha, beta = self._modal[5]
+        kw = k * omega
+        a, sf = 1.0 + 1j * kw * beta, kw**2 - 1j * kw * (alpha - xi)
+        ratio = abs(sf / a)
+        if self._split is None or self._split[0] * ratio > SPLIT_RHO:
+            H = max(self.harmonics.H, k)
+            aH, sH = 1.0 + 1j * H * omega * beta, (H * omega) ** 2 - 1j * H * omega * (alpha - xi)
+            cut = SPLIT_RHO / (2.0 * max(abs(sH / aH), ratio))
+            low = mu > cut
+            if low.sum() > 0.8 * mu.size:  # the series would save little: every mode summed
+                self._split = (cut, None, None, None, None)
+            else:
+                Bs, ms = B[:, ~low], mu[~low] / cut
+                P = np.empty((SPLIT_ORDER + 1, self.r, self.r))
+                g = np.empty((SPLIT_ORDER + 1, self.r), dtype=complex)
+                for p in range(SPLIT_ORDER + 1):
+                    wp = ms**p
+                    P[p] = (Bs * wp) @ Bs.T
+                    g[p] = Bs @ (wp * f1[~low])
+                self._split = (cut, P, g, low, np.ascontiguousarray(B[:, low]))
+        cut, P, g, low, Bl = self._split
+        if P is None:
+            return None
+        pp = np.arange(SPLIT_ORDER + 1)
+        c = (sf * cut / a) ** pp / a
+        dsf, da = 2.0 * k * k * omega - 1j * k * (alpha - xi), 1j * k * beta
+        return low, Bl, c, c * (pp * dsf / sf - (pp + 1) * da / a), c * pp * (1j * kw) / sf
 
     def _operators(self, omega: float, xi: float = 0.0, orders: tuple = ()) -> list[_Harmonic]:
         """Every harmonic's operators at omega, with xi on the harmonics ``orders`` (cached for the
@@ -392,6 +452,16 @@ class CondensedProblem(KeepsLastEvaluation, Problem):
 # the modal path (module docstring) up to this many DOFs: its eigendecomposition holds three dense
 # n x n arrays (3.5 GB at 12000) and takes minutes there, once
 MODAL_MAX = 13000
+# the modal path's stiff modes (_stiff): |mu s / a| <= SPLIT_RHO, the series to SPLIT_ORDER
+# (SPLIT_RHO^(SPLIT_ORDER + 1) / (1 - SPLIT_RHO) = 2.4e-16 of the stiff share left out)
+SPLIT_RHO = 0.25
+SPLIT_ORDER = 26
+
+
+def _series(c: np.ndarray, P: np.ndarray) -> np.ndarray:
+    """sum_p c_p P_p, c complex, P real (p, r, r)."""
+    return np.tensordot(c.real, P, axes=1) + 1j * np.tensordot(c.imag, P, axes=1)
+
 _LAST_BASIS: list = []  # [(K, M, D), ModalBasis] of the last structure whose basis was computed
 
 
@@ -403,6 +473,7 @@ class ModalBasis:
     mu: np.ndarray
     d: np.ndarray
     V: np.ndarray
+    rayleigh: tuple[float, float] | None = None  # (alpha, beta) where D = alpha M + beta K: d = alpha mu + beta
 
 
 def modal_basis(structure: Structure, *, required: bool = False) -> ModalBasis | None:
@@ -423,19 +494,19 @@ def modal_basis(structure: Structure, *, required: bool = False) -> ModalBasis |
         if required:
             raise
         return None
-    d = _diagonal_damping(structure, V, mu)
+    d, rayleigh = _diagonal_damping(structure, V, mu)
     if d is None:
         if required:
             raise LinAlgError("exact condensation (modal path): the damping matrix is not diagonal in the modes "
                               "(neither Rayleigh nor modal damping)")
         return None
-    _LAST_BASIS[:] = [key, ModalBasis(mu, d, V)]  # holds the matrices too, so that `is` cannot be fooled
+    _LAST_BASIS[:] = [key, ModalBasis(mu, d, V, rayleigh)]  # holds the matrices too, so that `is` cannot be fooled
     return _LAST_BASIS[1]
 
 
-def _diagonal_damping(s: Structure, V: np.ndarray, mu: np.ndarray) -> np.ndarray | None:
+def _diagonal_damping(s: Structure, V: np.ndarray, mu: np.ndarray) -> tuple[np.ndarray | None, tuple | None]:
     """d with V^T D V = diag(d) (V^T K V = I, V^T M V = diag(mu)), or None where D is not
-    diagonal in the modes.  Rayleigh damping D = alpha M + beta K (d = alpha mu + beta) is
+    diagonal in the modes; and (alpha, beta) where D is Rayleigh damping (else None).  Rayleigh damping D = alpha M + beta K (d = alpha mu + beta) is
     recognised from two random probes; other damping up to 4000 DOFs (modal damping) by
     forming diag(V^T D V) and checking D V c = K V (d c) on a random c."""
     n = s.num_dofs
@@ -443,13 +514,14 @@ def _diagonal_damping(s: Structure, V: np.ndarray, mu: np.ndarray) -> np.ndarray
     x = rng.standard_normal((n, 2))
     Dx = np.asarray(s.D @ x).ravel()
     A = np.column_stack([np.asarray(s.M @ x).ravel(), np.asarray(s.K @ x).ravel()])
-    ab = np.linalg.lstsq(A, Dx, rcond=None)[0]
+    norms = np.maximum(np.linalg.norm(A, axis=0), 1e-300)  # K x is about 1e12 times M x: scale the columns
+    ab = np.linalg.lstsq(A / norms, Dx, rcond=None)[0] / norms
     if np.linalg.norm(A @ ab - Dx) <= 1e-12 * np.linalg.norm(Dx):
-        return ab[0] * mu + ab[1]
+        return ab[0] * mu + ab[1], (float(ab[0]), float(ab[1]))
     if n > 4000:
-        return None
+        return None, None
     d = np.einsum("ij,ij->j", V, np.asarray(s.D @ V))
     c = rng.standard_normal(n)
     lhs = s.D @ (V @ c)
     rhs = s.K @ (V @ (d * c))
-    return d if np.linalg.norm(lhs - rhs) <= 1e-9 * max(np.linalg.norm(lhs), 1e-300) else None
+    return (d if np.linalg.norm(lhs - rhs) <= 1e-9 * max(np.linalg.norm(lhs), 1e-300) else None), None
