@@ -152,6 +152,16 @@ def test_mesh_file_is_relative_to_the_scene_file(tmp_path):
     assert load_scene(ROOT / "demos" / "lap3d.toml").model.mesh_file == str(ROOT / "meshes" / "lap3d.msh")
 
 
+def test_mesh_file_that_names_no_msh_file_is_refused_by_name(tmp_path):
+    """An empty [mesh] file resolved to the scene's folder and failed later inside meshio."""
+    text = (ROOT / "demos" / "lap3d.toml").read_text()
+    p = tmp_path / "lap.toml"
+    for bad in ("", "meshes/", "lap3d.vtu"):
+        p.write_text(text.replace('file = "../meshes/lap3d.msh"', f'file = "{bad}"'))
+        with pytest.raises(SceneError, match=rf"lap.toml.*mesh.file.*'{bad}'.*\.msh"):
+            load_scene(p)
+
+
 def test_small_ds_max_needs_no_ds0(tmp_path):
     """ds_max below the default first step (0.02) was refused on ds0, a key the user never set."""
     text = (ROOT / "demos" / "sdof_jenkins.toml").read_text().replace("samples = 256\n", "samples = 256\nds_max = 0.005\n")
