@@ -603,7 +603,8 @@ def write_frf(solution: SceneSolution, scene: Scene, out: Path, *, method: str, 
         "status": frf.info.get("status", "complete"),
         **({"stop_reason": frf.info["stop_reason"]} if "stop_reason" in frf.info else {}),
         "wall_s": {"build": solution.build_s, "setup": frf.info["time_setup_s"],
-                   "continuation": frf.info["time_online_s"],
+                   "continuation": frf.info["time_online_s"],  # the peak search included
+                   "peak_search": frf.info.get("time_peaks_s", 0.0),
                    "total": t_end - (wall_start if wall_start is not None else t_end)},
     }
     summary["software"] = software()

@@ -168,14 +168,18 @@ def compute_frf(model: Structure | Reduction, options: SweepOptions, *,
     omega, X = np.array([p.lam for p in points]), np.array([p.x for p in points])
     residual = np.array([p.residual for p in points])
     peaks = {}
+    t_peaks = time.perf_counter()
     if options.locate_peaks and not (stopped is not None and stopped.interrupted):  # Ctrl-C: no more solves
         peaks = locate_peaks(problem, X, omega, residual, records, layout.outputs, scales=scales,
                              lam_scale=lam_scale, newton=cont.newton)
     t_online = time.perf_counter() - t1
+    t_peaks = time.perf_counter() - t_peaks
     unknowns = np.array([r.unknowns for r in records])
     # the largest system Newton solved on the branch (the penalty ROM's changes along it: per point
     # in arrays["unknowns"])
-    info = {"time_setup_s": t_setup, "time_online_s": t_online, "num_unknowns": int(unknowns.max()),
+    # time_online_s: the sweep and the peak search; time_peaks_s: the peak search alone (its corrector
+    # solves are in info["peaks"][name].solves)
+    info = {"time_setup_s": t_setup, "time_online_s": t_online, "time_peaks_s": t_peaks, "num_unknowns": int(unknowns.max()),
             "newton_tol": cont.newton.tol, "continuation": steps,
             # achieved max|R| / max|F| per point: below the Newton tol, or below kink_tol where a
             # root on a kink of the sampled law stalled Newton (docs/theory.md)
