@@ -377,7 +377,7 @@ def main(argv=None) -> int:
         f"(`python benchmarks/friction.py --cases {cases}`) on "
         f"{datetime.datetime.now(datetime.timezone.utc):%Y-%m-%d %H:%M} UTC at commit {commit}, "
         f"{minutes:.0f} min on {m.get('cores')} cores ({platform.processor() or platform.machine()}), 1-minute load "
-        f"average {load0:.2f} at the start and {os.getloadavg()[0]:.2f} at the end (this run alone loads about 1 to 2).  "
+        f"average {load0:.2f} at the start and {os.getloadavg()[0]:.2f} at the end (this run alone, two BLAS threads, loads about 2).  "
         "Online times are medians of "
         f"{args.repeats} sweeps in one process after a warm-up, unless a case says otherwise; ratios are taken "
         "within this run.",
