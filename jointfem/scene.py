@@ -550,8 +550,7 @@ def _continuum(top: _Table, kind: str, path):
     if size_joint != size and not structured:
         m.fail("size_joint", size_joint, "refines the joint of structured meshes only (structured = true)")
     mesh_file = m.string("file", None)
-    if mesh_file is not None and (not mesh_file.strip() or mesh_file.endswith(("/", "\\"))
-                                  or Path(mesh_file).suffix.lower() != ".msh"):
+    if mesh_file is not None and Path(mesh_file).suffix.lower() != ".msh":  # '' and a folder too
         m.fail("file", mesh_file, "must name a gmsh .msh file (written there if it does not exist)")
     if mesh_file is not None and not Path(mesh_file).is_absolute() and Path(str(path)).is_file():
         mesh_file = str((Path(str(path)).resolve().parent / mesh_file).resolve())  # relative to the scene file

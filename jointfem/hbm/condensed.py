@@ -213,8 +213,7 @@ class CondensedProblem(KeepsLastEvaluation, Problem):
             if stiff is None:
                 R = receptance(w)
             else:
-                low, Bl, c, cw, cxi = stiff
-                P, g = self._split[1], self._split[2]
+                low, Bl, c, cw, cxi, P, g = stiff
                 R = receptance(w[low], Bl) + _series(c, P)
         try:
             S = np.linalg.inv(R)
@@ -248,7 +247,7 @@ class CondensedProblem(KeepsLastEvaluation, Problem):
 
         and the stiff modes' share of R_k is sum_p c_p P_p with P_p = B_s diag((mu_s/cut)^p) B_s^T,
         c_p = (s cut / a)^p / a: r x r matrices formed once, so a new omega costs products over the
-        low modes only.  Returns (low mask, B_low, c, dc/domega, dc/dxi), forming the split again
+        low modes only.  Returns (low mask, B_low, c, dc/domega, dc/dxi, P, g), forming the split again
         (cut = SPLIT_RHO / (2 |s/a|) at the highest harmonic) when this harmonic's |s/a| exceeds
         what the current one covers; None where no mode is stiff enough to gain from it."""
         mu, f1, B = self._modal[0], self._modal[4], self._modal[3]
@@ -278,7 +277,7 @@ class CondensedProblem(KeepsLastEvaluation, Problem):
         pp = np.arange(SPLIT_ORDER + 1)
         c = (sf * cut / a) ** pp / a
         dsf, da = 2.0 * k * k * omega - 1j * k * (alpha - xi), 1j * k * beta
-        return low, Bl, c, c * (pp * dsf / sf - (pp + 1) * da / a), c * pp * (1j * kw) / sf
+        return low, Bl, c, c * (pp * dsf / sf - (pp + 1) * da / a), c * pp * (1j * kw) / sf, P, g
 
     def _operators(self, omega: float, xi: float = 0.0, orders: tuple = ()) -> list[_Harmonic]:
         """Every harmonic's operators at omega, with xi on the harmonics ``orders`` (cached for the
