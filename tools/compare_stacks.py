@@ -25,8 +25,8 @@ are the same) on one stack, and ``swap`` solves lap3d's grid on another with the
 Debian 12 with Debian 13's matrices agrees with Debian 13 to 5.1e-10 (1.9e-8 with its own), so the
 stacks' difference is the assembly's last bits, not SLEPc, LAPACK, numpy or the HBM.
 
-    python tools/compare_stacks.py matrices --out /tmp/lap3d_trixie.npz          # on one stack
-    python tools/compare_stacks.py swap --matrices /tmp/lap3d_trixie.npz --out /tmp/swap.json  # on the other
+    python tools/compare_stacks.py matrices --out /tmp/lap3d_trixie             # on one stack (a folder)
+    python tools/compare_stacks.py swap --matrices /tmp/lap3d_trixie --out /tmp/swap.json  # on the other
     python tools/compare_stacks.py compare /tmp/swap.json docs/stacks/trixie.json --only lap3d
 
 ``compare`` prints the largest differences and exits 1 where one exceeds its bound: the grid
@@ -82,27 +82,19 @@ def _stack() -> dict:
     return out
 
 
-def _save_matrices(structure, path: Path) -> None:
-    """The assembled model of a case (K, M, D, the force, every contact group's gap rows) as NPZ."""
+def _save_matrices(structure, folder: Path) -> None:
+    """The assembled model of a case into ``folder``: K, M, D and every contact group's gap rows G
+    (scipy.sparse.save_npz), and the force (force.npz)."""
     import scipy.sparse as sp
 
-    G = sp.vstack([g.gap for g in structure.contacts]).tocsr()
-    arrays = {"fc": structure.fc, "fs": structure.fs}
+    folder.mkdir(parents=True, exist_ok=True)
+    G = sp.vstack([g.gap for g in structure.contacts])
     for name, A in (("K", structure.K), ("M", structure.M), ("D", structure.D), ("G", G)):
-        A = sp.csr_matrix(A)
-        A.sort_indices()
-        arrays.update({f"{name}_data": A.data, f"{name}_indices": A.indices, f"{name}_indptr": A.indptr,
-                       f"{name}_shape": np.array(A.shape)})
-    np.savez(path, **arrays)
+        sp.save_npz(folder / f"{name}.npz", sp.csr_matrix(A))
+    np.savez(folder / "force.npz", fc=structure.fc, fs=structure.fs)
 
 
-def _load_matrix(z, name: str):
-    import scipy.sparse as sp
-
-    return sp.csr_matrix((z[f"{name}_data"], z[f"{name}_indices"], z[f"{name}_indptr"]), shape=tuple(z[f"{name}_shape"]))
-
-
-def _swap_matrices(structure, path: Path):
+def _swap_matrices(structure, folder: Path):
     """``structure`` with K, M and D assembled on another stack (``_save_matrices``), after checking
     that the two are the same problem: the same DOFs in the same order (the gap rows, which say which
     DOFs meet, and the force equal to 1e-14), so only the assembled matrices differ."""
@@ -110,22 +102,22 @@ def _swap_matrices(structure, path: Path):
 
     import scipy.sparse as sp
 
-    z = np.load(path)
-    G = sp.vstack([g.gap for g in structure.contacts]).tocsr()
-    Gz = _load_matrix(z, "G")
+    load = {name: sp.load_npz(folder / f"{name}.npz").tocsr() for name in "KMDG"}
+    z = np.load(folder / "force.npz")
+    G, Gz = sp.vstack([g.gap for g in structure.contacts]).tocsr(), load["G"]
     same = (Gz.shape == G.shape and abs(Gz - G).max() <= 1e-14 * abs(G).max()
             and np.allclose(z["fc"], structure.fc, rtol=0, atol=1e-14 * np.abs(structure.fc).max())
             and np.allclose(z["fs"], structure.fs, rtol=0, atol=1e-14 * max(np.abs(structure.fs).max(), 1.0)))
     if not same:
-        raise SystemExit(f"compare_stacks: {path}: not the same DOFs, pairs or force as this stack's model "
+        raise SystemExit(f"compare_stacks: {folder}: not the same DOFs, pairs or force as this stack's model "
                          "(the meshes number their nodes differently?): cannot swap the matrices")
-    return dataclasses.replace(structure, K=_load_matrix(z, "K"), M=_load_matrix(z, "M"), D=_load_matrix(z, "D"))
+    return dataclasses.replace(structure, K=load["K"], M=load["M"], D=load["D"])
 
 
 def _grid_and_sweep(scene_file: str, method: str, modes: int, num: int, sets=(), *, matrices: Path | None = None,
                     sweep: bool = True) -> dict:
     """The grid of fixed-omega solutions and the arclength sweep of a scene.  ``matrices``: solve
-    with K, M, D from that file (``save_matrices`` on another stack)."""
+    with K, M, D from that folder (``save_matrices`` on another stack)."""
     from jointfem import app
     from jointfem.analysis.frf import solve_at
     from jointfem.harmonics import Harmonics
@@ -288,7 +280,7 @@ def main(argv=None) -> int:
     r = sub.add_parser("run", help="compute this stack's numbers")
     r.add_argument("--out", required=True, type=Path)
     r.add_argument("--full-brb", action="store_true", help="also the full BRB mesh (217 pairs; minutes)")
-    m = sub.add_parser("matrices", help="write lap3d's K, M, D (and its gap rows and force) to an NPZ")
+    m = sub.add_parser("matrices", help="write lap3d's K, M, D (and its gap rows and force) into a folder")
     m.add_argument("--out", required=True, type=Path)
     w = sub.add_parser("swap", help="lap3d's grid here with K, M, D from another stack's `matrices`")
     w.add_argument("--matrices", required=True, type=Path)
