@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from jointfem.continuation.arclength import (ContinuationError, ContinuationOptions, ConvergenceError, NewtonOptions,
-                                             continue_branch, solve_newton)
+                                             continue_branch, correct, hyperplane_derivative, solve_newton)
 
 
 def folded(x, lam):
@@ -127,3 +127,43 @@ def test_recovers_from_failed_steps_by_shrinking(caplog):
     assert np.all(np.diff(x) > 0) and x[-1] > 1.0  # through both folds, never back
     ds = np.array([p.ds for p in pts[1:]])
     assert ds.min() < 1.0  # the accepted steps include shortened ones
+
+
+@pytest.mark.parametrize("select", [None, np.array([0, 2])])
+def test_hyperplane_derivative_equals_finite_differences(select):
+    """d/dt of the point that ``correct`` finds on the hyperplane at t along a chord, against a
+    central difference of two corrector solutions (t +- 1e-5), on a two-fold S-curve coupled to a
+    second unknown, with scales that differ, near a fold (the chord crosses it) and on a flank; with
+    ``select``, the third coefficient is not an unknown (kept zero).  Truncation of the difference
+    is O(1e-10), Newton's tolerance 1e-13: agreement to 1e-7 of the derivative's size."""
+    def fun(x, lam):
+        u, v = x[0], x[2]
+        R = np.array([u**3 - u - lam + 0.1 * v, v - 0.5 * u**2 + 0.2 * lam, x[1] - 0.3 * u * v])
+        J = np.array([[3 * u**2 - 1, 0.0, 0.1], [-u, 0.0, 1.0], [-0.3 * v, 1.0, -0.3 * u]])
+        dl = np.array([-1.0, 0.2, 0.0])
+        if select is None:
+            return R, J, dl
+        return R[[0, 1]], J[np.ix_([0, 1], select)], dl[[0, 1]]
+
+    opts = NewtonOptions(tol=1e-13, max_iter=40)
+    xs, ls = np.array([2.0, 0.01, 0.5]), np.array([10.0])
+    for xa_u, xb_u in ((-0.7, -0.4), (1.2, 1.4)):  # across the fold at u = -1/sqrt 3; on the upper flank
+        pts = []
+        for u in (xa_u, xb_u):
+            v = 0.5 * u**2  # a start; correct() puts it on the branch
+            pts.append((np.array([u, 0.0 if select is not None else 0.3 * u * v, v]), u**3 - u + 0.1 * v))
+        (xa, la), (xb, lb) = pts
+        chord = (xb - xa, lb - la)
+        kw = dict(x_scale=xs, lam_scale=ls[0], r_scale=1.0, options=opts, select=select)
+
+        def at(t):
+            x, lam, _, _ = correct(fun, xa + t * chord[0], la + t * chord[1], chord, **kw)
+            return np.append(x, lam)
+
+        z = at(0.4)
+        dx, dlam = hyperplane_derivative(fun, z[:-1], z[-1], chord, x_scale=xs, lam_scale=ls[0], select=select)
+        fd = (at(0.4 + 1e-5) - at(0.4 - 1e-5)) / 2e-5
+        got = np.append(dx, dlam)
+        assert np.abs(got - fd).max() < 1e-7 * np.abs(fd).max(), (got, fd)
+        if select is not None:
+            assert dx[1] == 0.0

@@ -302,6 +302,21 @@ def correct(fun: Callable, x_p: np.ndarray, lam_p: float, direction: tuple[np.nd
     return space.full(y), mu * lam_scale, it, res
 
 
+def hyperplane_derivative(fun: Callable, x: np.ndarray, lam: float, direction: tuple[np.ndarray, float], *,
+                          x_scale, lam_scale: float, select: np.ndarray | None = None) -> tuple[np.ndarray, float]:
+    """(dx/dt, dlam/dt) of the point that ``correct`` finds on the hyperplane through
+    (x_p, lam_p) + t (dx, dlam), normal to ``direction`` = (dx, dlam), at its solution (x, lam):
+    the branch's tangent there, scaled so that its projection on the (scaled) direction is the
+    direction's length.  One Jacobian and one solve of the bordered system [[J, dR/dlam], [d^T]];
+    on a nonsmooth branch, the derivative of the smooth piece through (x, lam)."""
+    space = _Space(np.broadcast_to(np.asarray(x_scale, float), np.shape(x)).copy(), select)
+    g = _scaled(fun, space, lam_scale, 1.0)
+    d = np.append(space.sub(np.asarray(direction[0], float)), direction[1] / lam_scale)
+    _, J, dl = g(space.sub(x), lam / lam_scale)
+    w = _solve(_bordered(J, dl, d), np.append(np.zeros(J.shape[0]), d @ d))
+    return space.full(w[:-1]), float(w[-1] * lam_scale)
+
+
 @dataclass
 class ContinuationPoint:
     x: np.ndarray
