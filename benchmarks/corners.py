@@ -6,6 +6,7 @@ Per sweep: status, points, refused steps, corners passed, online seconds, the la
 residual (max|R| / max|F|) and the located peak.  Writes a Markdown table.
 
     .venv/bin/python benchmarks/corners.py --out docs/benchmarks_corners.md [--jobs 2] [--quick]
+    .venv/bin/python benchmarks/corners.py --case 'lap3d 3 N, exact' --budget 900   (one row, printed)
 
 Each sweep runs in its own process (``--jobs`` at a time), through jointfem.app.solve_scene as
 `jointfem frf` does, with stability off (it is not what is measured here).
@@ -111,7 +112,19 @@ def main():
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--quick", action="store_true", help=f"only {sorted(QUICK)}")
     ap.add_argument("--skip-before", action="store_true", help="only the current continuation")
+    ap.add_argument("--case", action="append", default=[], metavar="LABEL",
+                    help="only this case (repeatable), e.g. 'lap3d 3 N, exact'; prints its row, writes no table")
+    ap.add_argument("--budget", type=float, help="with --case: its time budget in s instead of the table's")
     args = ap.parse_args()
+    if args.case:
+        unknown = sorted(set(args.case) - {c[0] for c in CASES})
+        if unknown:
+            ap.error(f"--case {unknown}: not among {[c[0] for c in CASES]}")
+        for c in CASES:
+            if c[0] in args.case:
+                c = c[:7] + ((args.budget,) if args.budget else c[7:])
+                print(json.dumps(run((c, "now"))), flush=True)
+        return
     cases = [c for c in CASES if not args.quick or c[0] in QUICK]
     work = [(c, "now") for c in cases] + ([] if args.skip_before else [(c, "before") for c in cases])
     t0 = time.time()
