@@ -154,19 +154,22 @@ def _bordered(J, c, t):
 def _scaled(fun, space: "_Space", lam_scale, r_scale):
     """Wrap fun(x, lam) -> (R, J, dR/dlam), which takes every coefficient, into the scaled unknowns
     of ``space``."""
-    Sx = sp.diags(space.scale)
-
     def g(y, mu):
         R, J, dl = fun(space.full(y), mu * lam_scale)
         if R.shape[0] != np.size(y):
             raise ValueError(f"the problem returned {R.shape[0]} residuals for {np.size(y)} unknowns: "
                              "an adaptive problem's unknowns (Adaptive.unknowns) were not passed")
         if J is not None:
-            J = (J @ Sx) / r_scale if sp.issparse(J) else J * space.scale / r_scale
-            dl = dl * lam_scale / r_scale
+            J, dl = _scaled_jacobian(J, dl, space, lam_scale, r_scale)
         return R / r_scale, J, dl
 
     return g
+
+
+def _scaled_jacobian(J, dl, space: "_Space", lam_scale, r_scale):
+    """dR/dx and dR/dlam in the scaled variables of ``space``."""
+    J = (J @ sp.diags(space.scale)) / r_scale if sp.issparse(J) else J * space.scale / r_scale
+    return J, dl * lam_scale / r_scale
 
 
 class _Space:
@@ -310,9 +313,10 @@ def hyperplane_derivative(fun: Callable, x: np.ndarray, lam: float, direction: t
     direction's length.  One Jacobian and one solve of the bordered system [[J, dR/dlam], [d^T]];
     on a nonsmooth branch, the derivative of the smooth piece through (x, lam)."""
     space = _Space(np.broadcast_to(np.asarray(x_scale, float), np.shape(x)).copy(), select)
-    g = _scaled(fun, space, lam_scale, 1.0)
     d = np.append(space.sub(np.asarray(direction[0], float)), direction[1] / lam_scale)
-    _, J, dl = g(space.sub(x), lam / lam_scale)
+    # at (x, lam) as given: a problem that keeps its last evaluation has the corrector's last one
+    _, J, dl = fun(x, lam)
+    J, dl = _scaled_jacobian(J, dl, space, lam_scale, 1.0)
     w = _solve(_bordered(J, dl, d), np.append(np.zeros(J.shape[0]), d @ d))
     return space.full(w[:-1]), float(w[-1] * lam_scale)
 
