@@ -146,3 +146,23 @@ def test_flat_top_covered_with_kinks_costs_a_fraction_of_the_steepest_bound(monk
         total["pieces"] += a.solves
         total["steepest"] += b.solves
     assert total["pieces"] <= 0.4 * total["steepest"], total
+
+
+def test_without_tangents_the_search_falls_back_to_the_steepest_bound(monkeypatch):
+    """Where the bordered system of a point's tangent is singular (a bifurcation on the branch),
+    its slope is taken as the steepest anywhere: with every tangent refused the search is the
+    "steepest" one, to the solve (SDOF oscillator of the tests above, F = 0.2, N = 64)."""
+    import jointfem.analysis.peaks as peaksmod
+
+    s = create_lumped(sdof(0.2))
+    h = Harmonics(7, 64)
+
+    def refused(*args, **kw):
+        raise np.linalg.LinAlgError("singular")
+
+    monkeypatch.setattr(peaksmod, "hyperplane_derivative", refused)
+    fallback = compute_frf(s, SweepOptions(0.5, 2.0, h)).info["peaks"]["m.x"]
+    monkeypatch.setattr(peaksmod, "KINK_BOUND", "steepest")
+    steepest = compute_frf(s, SweepOptions(0.5, 2.0, h)).info["peaks"]["m.x"]
+    assert fallback.located and (fallback.omega, fallback.amplitude, fallback.solves) == (
+        steepest.omega, steepest.amplitude, steepest.solves)

@@ -183,7 +183,10 @@ def _locate(segments: _Segments, records, dof, *, grid: int, omega_rtol: float) 
         xs, ls, res = segments.point(k, float(s - k))
         A[s] = a = output_amplitude(xs, dof, h)
         if KINK_BOUND == "pieces":
-            D[s] = abs(output_amplitude_derivative(xs, segments.derivative(k, float(s - k)), dof, h))
+            try:
+                D[s] = abs(output_amplitude_derivative(xs, segments.derivative(k, float(s - k)), dof, h))
+            except (np.linalg.LinAlgError, RuntimeError):  # singular bordered system (a bifurcation)
+                D[s] = np.nan  # bounded as steeply as anywhere (below)
         states[s] = b"".join(c.state_t.tobytes() for c in problem.evaluate(xs, ls, jacobian=False).contact)
         if a > best[0]:
             best = (a, ls, res)
@@ -219,6 +222,7 @@ def _locate(segments: _Segments, records, dof, *, grid: int, omega_rtol: float) 
             # pieces through its ends and its neighbours' far ends do, or as across them
             if KINK_BOUND == "pieces":
                 d = np.array([D[v] for v in at])
+                d[np.isnan(d)] = slope
                 ends = np.maximum(d[:-1], d[1:])
                 kink = SAFETY * np.maximum(near, np.maximum(ends, np.maximum(np.append(ends[1:], 0.0),
                                                                              np.append(0.0, ends[:-1]))))
