@@ -23,8 +23,11 @@ st = create_structure(scene)
 sweep = sweep_options(scene, stability="off")
 t = time.perf_counter()
 spec = parse_method("penalty:10:6", RomOptions())
-rom = build_rom(st, spec.method, spec.options); off = time.perf_counter() - t
-t = time.perf_counter(); pen = compute_frf(rom, sweep); on = time.perf_counter() - t
+rom = build_rom(st, spec.method, spec.options)
+off = time.perf_counter() - t
+t = time.perf_counter()
+pen = compute_frf(rom, sweep)
+on = time.perf_counter() - t
 print(f"penalty:10+6tvd offline {off:.1f} s online {on:.1f} s points {pen.num_points} peak {pen.peak('a_mid.uy')} peak-search {pen.info.get('time_peaks_s')}", flush=True)
 t = time.perf_counter()
 ex = build_rom(st, "exact")

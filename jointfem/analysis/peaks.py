@@ -83,21 +83,22 @@ class Peak:
     reason: str = ""
 
 
+def _output(x: np.ndarray, dof, harmonics: Harmonics) -> np.ndarray:
+    """An output's harmonic coefficients (num_hc,) from coefficients x (index or recovery row)."""
+    X = x.reshape(harmonics.num_hc, -1)
+    return X @ dof if np.ndim(dof) else X[:, dof]
+
+
 def output_amplitude(x: np.ndarray, dof, harmonics: Harmonics) -> float:
     """First-harmonic amplitude of an output (index or recovery row) of coefficients x."""
-    X = x.reshape(harmonics.num_hc, -1)
-    out = X @ dof if np.ndim(dof) else X[:, dof]
-    return float(harmonics.amplitude(out, 1))
+    return float(harmonics.amplitude(_output(x, dof, harmonics), 1))
 
 
 def output_amplitude_derivative(x: np.ndarray, dx: np.ndarray, dof, harmonics: Harmonics) -> float:
     """d/de of output_amplitude(x + e dx) at e = 0 (the amplitude sqrt(c^2 + s^2) of the first
     harmonic's coefficients, linear in x)."""
-    def first(v):
-        V = v.reshape(harmonics.num_hc, -1)
-        out = V @ dof if np.ndim(dof) else V[:, dof]
-        return float(np.squeeze(out[harmonics.block_cos(1)])), float(np.squeeze(out[harmonics.block_sin(1)]))
-    (c, s), (dc, ds) = first(x), first(dx)
+    (c, s), (dc, ds) = ((float(np.squeeze(o[harmonics.block_cos(1)])), float(np.squeeze(o[harmonics.block_sin(1)])))
+                        for o in (_output(x, dof, harmonics), _output(dx, dof, harmonics)))
     a = np.hypot(c, s)
     return float((c * dc + s * ds) / a) if a > 0 else float(np.hypot(dc, ds))
 
@@ -216,16 +217,14 @@ def _locate(segments: _Segments, records, dof, *, grid: int, omega_rtol: float) 
             # neighbours (concave: its slope lies between theirs; convex: its largest value is at
             # an end).  Any other cell may hold a kink, up to which A may rise as steeply as it
             # does anywhere.
-            near = np.maximum(cell, np.maximum(np.append(cell[1:], 0.0), np.append(0.0, cell[:-1])))
+            near = _with_neighbours(cell)
             smooth = np.array([states[u] == states[v] for u, v in zip(at[:-1], at[1:])]) & (ds * grid < 0.75)
             # A cell that may hold kinks: A rises in it at most SAFETY times as steeply as the
             # pieces through its ends and its neighbours' far ends do, or as across them
             if KINK_BOUND == "pieces":
                 d = np.array([D[v] for v in at])
                 d[np.isnan(d)] = slope
-                ends = np.maximum(d[:-1], d[1:])
-                kink = SAFETY * np.maximum(near, np.maximum(ends, np.maximum(np.append(ends[1:], 0.0),
-                                                                             np.append(0.0, ends[:-1]))))
+                kink = SAFETY * np.maximum(near, _with_neighbours(np.maximum(d[:-1], d[1:])))
             else:  # "steepest": as steeply as anywhere
                 kink = SAFETY * slope
             bound = np.where(smooth, near, kink)
@@ -254,3 +253,8 @@ def _locate(segments: _Segments, records, dof, *, grid: int, omega_rtol: float) 
         log.warning("peak not located between omega = %.9g and %.9g: %s", lam[lo], lam[hi], exc)
         return Peak(float(lam[i]), float(amp[i]), located=False, reason=str(exc))
     return Peak(best[1], best[0], located=True, residual=best[2])
+
+
+def _with_neighbours(v: np.ndarray) -> np.ndarray:
+    """Per cell, the largest of v over it and its two neighbouring cells."""
+    return np.maximum(v, np.maximum(np.append(v[1:], 0.0), np.append(0.0, v[:-1])))
