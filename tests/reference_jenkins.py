@@ -183,14 +183,19 @@ def _search(one, g, nt, scale, rtol, max_iter, num_plain):
         if not (state_t != STICK).any():
             return w, (0 if it == 0 else 2), it, newton
         r = w_end - w
-        if np.abs(r).max() / scale <= rtol:
-            return w, 1, it, newton
+        err = np.abs(r).max() / scale
         if it < num_plain:
-            w = w_end
+            v = w_end
         else:
             newton = True
             A = np.eye(nt) - T[0]
-            w = w + (np.linalg.solve(A, r[0]) if abs(np.linalg.det(A)) > 1e-12 else r[0])
+            v = w + (np.linalg.solve(A, r[0]) if abs(np.linalg.det(A)) > 1e-12 else r[0])
+        if err <= rtol:  # the next iterate is kept if its period still slips and closes better
+            _, state_v, v_end, _ = _march(one, g, v, need_T=True)
+            if (state_v != STICK).any() and np.abs(v_end - v).max() / scale <= err:
+                return v, 1, it + 1, newton
+            return w, 1, it, newton
+        w = v
     raise ContactError("slider steady state not reached")
 
 

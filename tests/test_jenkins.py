@@ -192,3 +192,26 @@ def test_pair_ratcheting_into_shakedown_converges():
     np.testing.assert_allclose(r.w_start, ref.w_start, atol=1e-9)
     # The limit sits on the boundary of the stick region, where the steady state is not
     # differentiable (finite differences of either side disagree), so no FD check here.
+
+
+@pytest.mark.parametrize("has_normal", [False, True])
+def test_steady_slider_closes_below_the_search_tolerance(has_normal):
+    """The slider state returned closes its period far below the search's rtol (1e-10 of the
+    scale): with 2D slip the fixed point is found by Newton, and the iterate that first meets
+    rtol is stepped once more.  An error of rtol * scale in w passes through kt into the forces:
+    on the 25-pair lap joint it held the HBM residual at 1.1e-10 of its scale, just above the
+    Newton tolerance, and cost every corrector two more iterations."""
+    from reference_jenkins import _march
+
+    p, G, h = _random_case(2, has_normal, P=40, seed=5, H=3, N=128)
+    r = compute_aft(p, G, h, jacobian=False)
+    worst = 0.0
+    for k in range(p.num_pairs):
+        one = JenkinsPairs(kt=p.kt[k:k + 1], kn=p.kn[k:k + 1], mu=p.mu[k:k + 1], N0=p.N0[k:k + 1],
+                           num_tangential=2, has_normal=has_normal)
+        g = r.g_t[:, k:k + 1]
+        _, state_t, w_end, _ = _march(one, g, r.w_start[k:k + 1], need_T=True)
+        if (state_t == SLIP).any():
+            scale = max(p.mu[k] * p.N0[k] / p.kt[k], np.abs(g[:, :, :2]).max())
+            worst = max(worst, np.abs(w_end - r.w_start[k:k + 1]).max() / scale)
+    assert 0.0 < worst <= 1e-13
