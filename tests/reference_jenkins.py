@@ -191,7 +191,7 @@ def _search(one, g, nt, scale, rtol, max_iter, num_plain):
             A = np.eye(nt) - T[0]
             v = w + (np.linalg.solve(A, r[0]) if abs(np.linalg.det(A)) > 1e-12 else r[0])
         if err <= rtol:  # the next iterate is kept if its period still slips and closes better
-            _, state_v, v_end, _ = _march(one, g, v, need_T=True)
+            _, state_v, v_end, _ = _march(one, g, v)
             if (state_v != STICK).any() and np.abs(v_end - v).max() / scale <= err:
                 return v, 1, it + 1, newton
             return w, 1, it, newton

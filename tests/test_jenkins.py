@@ -210,7 +210,7 @@ def test_steady_slider_closes_below_the_search_tolerance(has_normal):
         one = JenkinsPairs(kt=p.kt[k:k + 1], kn=p.kn[k:k + 1], mu=p.mu[k:k + 1], N0=p.N0[k:k + 1],
                            num_tangential=2, has_normal=has_normal)
         g = r.g_t[:, k:k + 1]
-        _, state_t, w_end, _ = _march(one, g, r.w_start[k:k + 1], need_T=True)
+        _, state_t, w_end, _ = _march(one, g, r.w_start[k:k + 1])
         if (state_t == SLIP).any():
             scale = max(p.mu[k] * p.N0[k] / p.kt[k], np.abs(g[:, :, :2]).max())
             worst = max(worst, np.abs(w_end - r.w_start[k:k + 1]).max() / scale)
