@@ -513,20 +513,26 @@ def _continuum(top: _Table, kind: str, path):
     shape = g.string("shape", choices=GEOMETRIES)
     if shape == "brb" and dim != 3:
         g.fail("shape", shape, "the Brake-Reuss beam is 3D only (kind = \"continuum3d\")")
-    brb = shape == "brb"
+    brb, stack = shape == "brb", shape == "stack"
     geo = dict(geometry=shape, dim=dim,
                length=g.number("length", 0.42 if brb else 0.3, gt=0),
                height=g.number("height", 0.0254 if brb else 0.006, gt=0),
-               width=g.number("width", 0.0254 if brb else 0.025, gt=0),
-               overlap=g.number("overlap", 0.12 if brb else 0.03, gt=0))
+               width=g.number("width", 0.0254 if brb else 0.025, gt=0))
+    if stack:  # the block lies on the base's whole top face
+        if g.has("overlap"):
+            g.fail("overlap", g.raw("overlap"), "a stack's block covers its base: its joint is the whole length")
+        geo["overlap"] = geo["length"]
+    else:
+        geo["overlap"] = g.number("overlap", 0.12 if brb else 0.03, gt=0)
     if brb and geo["width"] != geo["height"]:
         g.fail("width", geo["width"], f"the Brake-Reuss section is square: must equal height = {geo['height']}")
-    if shape != "bar" and not geo["overlap"] < geo["length"]:
+    if shape not in ("bar", "stack") and not geo["overlap"] < geo["length"]:
         g.fail("overlap", geo["overlap"], f"must be < length = {geo['length']}")
-    clamped = g.strings("clamped", () if brb else ("A", "B"), min_len=0, max_len=2)
+    clamped = g.strings("clamped", () if brb else ("A",) if stack else ("A", "B"), min_len=0, max_len=2)
     for c in clamped:
         if c not in ("A", "B"):
-            g.fail("clamped", list(clamped), "entries must be \"A\" (left end) or \"B\" (right end)")
+            g.fail("clamped", list(clamped), "entries must be \"A\" (the base's bottom face) or \"B\" (the "
+                   "block's top face)" if stack else "entries must be \"A\" (left end) or \"B\" (right end)")
     geo["clamped"] = ("A" in clamped, "B" in clamped)
     if shape == "bar" and not geo["clamped"][0]:
         g.fail("clamped", list(clamped), "the single bar is a cantilever: must include \"A\"")
@@ -569,7 +575,7 @@ def _continuum(top: _Table, kind: str, path):
     if not material["poisson"] < 0.5:
         mat.fail("poisson", material["poisson"], "must be < 0.5")
     mat.done()
-    ymax = 2 * geo["height"] if shape == "lap" else geo["height"]
+    ymax = 2 * geo["height"] if shape in ("lap", "stack") else geo["height"]
     box = ((0.0, 0.0, 0.0)[:dim], (x_end, ymax, geo["width"])[:dim])
     contact = {}
     if shape != "bar":

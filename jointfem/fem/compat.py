@@ -18,6 +18,7 @@ The same on both (checked with ``help()`` on each stack):
 * ``dolfinx.io.gmshio.model_to_mesh(model, comm, rank, gdim=)`` returns (mesh, cell_tags,
   facet_tags) in 0.5.2 and in 0.9 (0.10 returns a named tuple: not supported here).
 * ``fem.form``, ``fem.petsc.assemble_matrix/assemble_vector`` (PETSc Mat/Vec), ``MeshTags.find``,
+  ``fem.Constant(mesh, value)`` and its ``value`` setter,
   ``fem.locate_dofs_topological(V, dim, entities)``, ``dofmap.cell_dofs``, index maps'
   ``size_local``/``num_ghosts``/``local_range``/``local_to_global``.
 """
@@ -25,6 +26,7 @@ from __future__ import annotations
 
 import contextlib
 import logging
+import warnings
 
 import numpy as np
 
@@ -36,12 +38,15 @@ def _drop_info(record: logging.LogRecord) -> bool:
 @contextlib.contextmanager
 def quiet_jit():
     """dolfinx 0.5.2 compiles forms through setuptools, which lowers the root logger to INFO and
-    logs every compiler call on it: drop those records while compiling."""
+    logs every compiler call on it: drop those records while compiling.  FFCx's advice on a rule
+    of many points (the washers' integrals ask for one on purpose) is dropped too."""
     root = logging.getLogger()
     level = root.level
     root.addFilter(_drop_info)
     try:
-        yield
+        with warnings.catch_warnings():
+            warnings.filterwarnings("ignore", message="Number of integration points per cell")
+            yield
     finally:
         root.removeFilter(_drop_info)
         root.setLevel(level)
@@ -130,6 +135,14 @@ def facet_blocks(space, facet_tags, tag: int) -> np.ndarray:
 
     fdim = space.mesh.topology.dim - 1
     return fem.locate_dofs_topological(space, fdim, facet_tags.find(tag))
+
+
+def constant(mesh, value: float):
+    """A real constant of a form, whose ``value`` may be set between assemblies without a new JIT."""
+    import dolfinx.fem as fem
+    from petsc4py import PETSc
+
+    return fem.Constant(mesh, PETSc.ScalarType(value))
 
 
 def assemble_matrix(form):

@@ -33,7 +33,7 @@ from ..models.structure import ContactGroup, Structure
 from . import compat
 from . import geometry as geo
 
-GEOMETRIES = ("lap", "brb", "bar")
+GEOMETRIES = ("lap", "brb", "bar", "stack")
 COMPONENTS = ("ux", "uy", "uz")
 
 
@@ -65,7 +65,7 @@ class Support:
 
 @dataclass(frozen=True)
 class ContinuumSpec:
-    geometry: str = "lap"  # "lap" | "brb" | "bar"
+    geometry: str = "lap"  # "lap" | "brb" | "bar" | "stack" (a block on a base: overlap = length)
     dim: int = 3
     length: float = 0.3  # m, each bar (brb: each half, 0.42)
     height: float = 0.006  # m, each bar (brb: the square section's side, 0.0254)
@@ -120,6 +120,8 @@ class ContinuumSpec:
             return geo.lap_layout(self.dim, self.length, self.height, self.width, self.overlap, self.clamped)
         if self.geometry == "brb":
             return geo.brb_layout(self.length, self.height, self.overlap, self.clamped)
+        if self.geometry == "stack":
+            return geo.stack_layout(self.dim, self.length, self.height, self.width, self.clamped)
         return geo.bar_layout(self.dim, self.length, self.height, self.width, self.clamped[1])
 
 
@@ -139,6 +141,10 @@ class Mesh:
     extent: float
     timings: dict = field(default_factory=dict)
     cells: int = 0
+    # (num_bolts, num_nodes): per bolt, the integral of each node's shape function over the outer
+    # faces' area under its washer, m^2 (a clamped outer face excluded): the consistent nodal shares
+    # of a uniform washer pressure, computed where the spec's preload is "static"
+    washers: np.ndarray | None = None
 
 
 def build_mesh(spec: ContinuumSpec, comm=None) -> Mesh:
@@ -239,12 +245,41 @@ def build_mesh(spec: ContinuumSpec, comm=None) -> Mesh:
             area += gather_nodal(compat.assemble_vector(thick * w * ds(tag)))
             for i in range(d):
                 normal[:, i] += gather_nodal(compat.assemble_vector(thick * w * nrm[i] * ds(tag)))
+    washers = None
+    if spec.preload == "static" and spec.bolts and layout.outer is not None:
+        washers = np.array([gather_nodal(v) for v in _washer_integrals(mesh, W, facet_tags, spec.bolts, thick)])
     t3 = time.perf_counter()
     Kp.destroy()
     Mp.destroy()
     return Mesh(d, coords, sub, K, M, clamped, contact, area, normal, layout.extent,
                 {"mesh_s": t1 - t0, "assembly_s": t2 - t1, "gather_s": t3 - t2},
-                cells=mesh.topology.index_map(d).size_global)
+                cells=mesh.topology.index_map(d).size_global, washers=washers)
+
+
+# Gauss points per direction on a face for the washer's disc (its indicator is not a polynomial):
+# degree 18 gives 10 x 10 points on a quadrilateral face, so the disc's rim is placed to about a
+# tenth of an element; the total force is exact whatever the rule (washer_loads normalises)
+WASHER_QUADRATURE_DEGREE = 18
+
+
+def _washer_integrals(mesh, W, facet_tags, bolts, thick: float) -> list[np.ndarray]:
+    """Per bolt, the owned entries of  int_{outer faces, |x - axis| <= radius} w_i dA  (thick: the
+    2D width, where the washer is a strip |x - x_b| <= radius across it)."""
+    import ufl
+
+    x = ufl.SpatialCoordinate(mesh)
+    centre = [compat.constant(mesh, 0.0) for _ in range(3)]  # x, z, radius
+    r2 = (x[0] - centre[0]) ** 2 + ((x[2] - centre[1]) ** 2 if mesh.geometry.dim == 3 else 0)
+    under = ufl.conditional(ufl.le(r2, centre[2] ** 2), 1.0, 0.0)
+    ds = ufl.Measure("ds", domain=mesh, subdomain_data=facet_tags,
+                     metadata={"quadrature_degree": WASHER_QUADRATURE_DEGREE})
+    form = thick * under * ufl.TestFunction(W) * (ds(geo.OUTER_A) + ds(geo.OUTER_B))
+    out = []
+    for bolt in bolts:
+        for c, v in zip(centre, (bolt.x, bolt.z, bolt.radius)):
+            c.value = v
+        out.append(compat.assemble_vector(form))
+    return out
 
 
 def _substructure_of_blocks(space, cell_tags) -> np.ndarray:
@@ -360,26 +395,29 @@ def frames(normal: np.ndarray, dim: int) -> np.ndarray:
 
 def washer_loads(mesh: Mesh, spec: ContinuumSpec) -> np.ndarray:
     """The bolts' forces on the outer faces (all DOFs, N): each bolt pushes the face of A opposite
-    the joint (its extreme along the joint normal) towards B, and B's towards A, by ``force`` N,
-    shared equally by the face nodes within ``radius`` of its axis (the washer)."""
+    the joint towards B, and B's towards A, by ``force`` N, a uniform pressure over the washer (the
+    disc of ``radius`` about its axis; a strip across the width in 2D) in consistent nodal shares
+    (Mesh.washers).  A clamped outer face (the stack's base) takes its washer's load in its clamp."""
     d = mesh.dim
+    if mesh.washers is None or mesh.washers.shape[0] != len(spec.bolts):
+        raise ContinuumError(f"{spec.source}: the mesh carries no washer integrals for these {len(spec.bolts)} bolts "
+                             f"(build it from a spec with preload = \"static\" and the same bolts)")
     a_nodes = mesh.contact[0]
     n = mesh.normal[a_nodes].sum(axis=0)
     n = n / np.linalg.norm(n)  # A's outward normal on the joint: from A to B
     F = np.zeros(d * mesh.coords.shape[0])
-    h = 1e-9 * mesh.extent
-    for k, bolt in enumerate(spec.bolts):
+    layout = spec.layout()
+    for k, (bolt, w) in enumerate(zip(spec.bolts, mesh.washers)):
         for sub, sign in ((0, 1.0), (1, -1.0)):
-            nodes = np.flatnonzero(mesh.sub == sub)
-            y = mesh.coords[nodes] @ n
-            face = nodes[np.abs(y - (y.min() if sub == 0 else y.max())) <= h]
-            r = np.hypot(mesh.coords[face, 0] - bolt.x, mesh.coords[face, 2] - bolt.z if d == 3 else 0.0)
-            under = face[r <= bolt.radius]
-            if not under.size:
+            if layout.clamps[sub] == (1, layout.outer[sub]):
+                continue
+            ws = np.where(mesh.sub == sub, w, 0.0)
+            if not ws.sum() > 0:
                 raise ContinuumError(f"{spec.source}: bolt {k} at x = {bolt.x}, z = {bolt.z} m with radius "
-                                     f"{bolt.radius} m covers no node of the outer face of {'AB'[sub]}")
+                                     f"{bolt.radius} m covers none of the outer face of {'AB'[sub]} (no quadrature "
+                                     f"point of the face lies under its washer)")
             for i in range(d):
-                np.add.at(F, d * under + i, sign * bolt.force * n[i] / under.size)
+                F[i::d] += sign * bolt.force * n[i] * ws / ws.sum()
     return F
 
 

@@ -11,7 +11,8 @@ the same extent, get the same nodes.  The matching is checked after assembly
 Physical groups (read back by dolfinx as cell and facet tags):
 
     cells:   1 = substructure A, 2 = substructure B
-    facets: 11 = clamp of A, 12 = clamp of B, 21 = contact surface of A, 22 = contact surface of B
+    facets: 11 = clamp of A, 12 = clamp of B, 21 = contact surface of A, 22 = contact surface of B,
+            31 = outer face of A, 32 = outer face of B (opposite the joint: where a bolt's washer sits)
 
 Axes: x along the bars, y the stacking (normal) direction, z the width (3D).
 All lengths in m.  Only this module and ``jointfem.fem`` touch gmsh.
@@ -24,6 +25,7 @@ from dataclasses import dataclass
 CELL_A, CELL_B = 1, 2
 CLAMP_A, CLAMP_B = 11, 12
 CONTACT_A, CONTACT_B = 21, 22
+OUTER_A, OUTER_B = 31, 32
 
 
 @dataclass(frozen=True)
@@ -43,15 +45,23 @@ class Box:
 class Layout:
     """The blocks of a jointed structure and where its clamps and contact surfaces lie.
 
-    clamps: per substructure, the x of its clamped end face (None: unsupported).
+    clamps: per substructure, (axis, coordinate) of its clamped face, the plane x_axis = coordinate
+        (None: unsupported); the bars are clamped at an end face (axis 0).
     contact: (x0, x1, y) of the joint plane y = const between x0 and x1 (full width in 3D).
+    outer: per substructure, the y of its face opposite the joint, where a bolt's washer sits.
     """
 
     dim: int
     boxes: tuple[Box, ...]
-    clamps: tuple[float | None, float | None]
+    clamps: tuple[tuple[int, float] | None, tuple[int, float] | None]
     contact: tuple[float, float, float] | None
     extent: float  # the model size, m (for tolerances)
+    outer: tuple[float, float] | None = None
+
+
+def _ends(x_a: float, x_b: float, clamped: tuple[bool, bool]):
+    """Clamps at the end faces x = x_a of A and x = x_b of B, where ``clamped`` says so."""
+    return tuple((0, x) if c else None for x, c in zip((x_a, x_b), clamped))
 
 
 def lap_layout(dim: int, length: float, height: float, width: float, overlap: float,
@@ -61,9 +71,19 @@ def lap_layout(dim: int, length: float, height: float, width: float, overlap: fl
     x0 = length - overlap
     boxes = [Box(0, 0.0, 0.0, x0, height, 0.0, width), Box(0, x0, 0.0, overlap, height, 0.0, width),
              Box(1, x0, height, overlap, height, 0.0, width), Box(1, length, height, x0, height, 0.0, width)]
-    return Layout(dim, tuple(_flat(b, dim) for b in boxes),
-                  (0.0 if clamped[0] else None, 2 * length - overlap if clamped[1] else None),
-                  (x0, length, height), 2 * length - overlap)
+    return Layout(dim, tuple(_flat(b, dim) for b in boxes), _ends(0.0, 2 * length - overlap, clamped),
+                  (x0, length, height), 2 * length - overlap, (0.0, 2 * height))
+
+
+def stack_layout(dim: int, length: float, height: float, width: float,
+                 clamped: tuple[bool, bool] = (True, False)) -> Layout:
+    """A block B of ``length`` x ``height`` (x ``width`` in 3D) lying on a base A of the same
+    footprint, the joint their whole common face y = height.  A's clamp is its bottom face y = 0,
+    B's its top face y = 2 height: pressed on a clamped base, the classic check of a contact law."""
+    boxes = [Box(0, 0.0, 0.0, length, height, 0.0, width), Box(1, 0.0, height, length, height, 0.0, width)]
+    clamps = tuple((1, y) if c else None for y, c in zip((0.0, 2 * height), clamped))
+    return Layout(dim, tuple(_flat(b, dim) for b in boxes), clamps, (0.0, length, height),
+                  max(length, 2 * height, width if dim == 3 else 0.0), (0.0, 2 * height))
 
 
 def brb_layout(length: float = 0.42, side: float = 0.0254, overlap: float = 0.12,
@@ -77,13 +97,13 @@ def brb_layout(length: float = 0.42, side: float = 0.0254, overlap: float = 0.12
              Box(0, x0, 0.0, overlap, half, 0.0, side),
              Box(1, x0, half, overlap, half, 0.0, side),
              Box(1, length, 0.0, x0, half, 0.0, side), Box(1, length, half, x0, half, 0.0, side)]
-    return Layout(3, tuple(boxes), (0.0 if clamped[0] else None, 2 * length - overlap if clamped[1] else None),
-                  (x0, length, half), 2 * length - overlap)
+    return Layout(3, tuple(boxes), _ends(0.0, 2 * length - overlap, clamped), (x0, length, half), 2 * length - overlap,
+                  (0.0, side))
 
 
 def bar_layout(dim: int, length: float, height: float, width: float, clamped_end: bool = False) -> Layout:
     """One bar clamped at x = 0, and at x = length too if ``clamped_end`` (the Euler-Bernoulli validation)."""
-    return Layout(dim, (_flat(Box(0, 0.0, 0.0, length, height, 0.0, width), dim),), (0.0, length if clamped_end else None),
+    return Layout(dim, (_flat(Box(0, 0.0, 0.0, length, height, 0.0, width), dim),), _ends(0.0, length, (True, clamped_end)),
                   None, length)
 
 
@@ -177,13 +197,24 @@ def build(layout: Layout, size: float, *, name: str = "jointfem", size_normal: f
         found = gmsh.model.getEntitiesInBoundingBox(x0 - eps, y0 - eps, z0 - eps, x1 + eps, y1 + eps, z1 + eps, d - 1)
         return sorted(t for dd, t in found if t in own)
 
-    for end, x in enumerate(layout.clamps):
+    def plane(axis, value):  # the bounding box of the plane x_axis = value
+        lo, hi = [-big] * 3, [big] * 3
+        lo[axis] = hi[axis] = value
+        return (*lo, *hi)
+
+    for end, clamp in enumerate(layout.clamps):
         sub = end if sub_boxes[1] else 0  # a single bar carries both clamps
-        if x is None or not sub_boxes[sub]:
+        if clamp is None or not sub_boxes[sub]:
             continue
-        f = faces_in(x, -big, -big, x, big, big, sub)
+        f = faces_in(*plane(*clamp), sub)
         if f:
             gmsh.model.addPhysicalGroup(d - 1, f, (CLAMP_A, CLAMP_B)[end])
+    for sub, y in enumerate(layout.outer or ()):
+        if layout.clamps[sub] == (1, y):  # a clamped outer face: the clamp carries a washer's load
+            continue
+        f = faces_in(*plane(1, y), sub)
+        if f:
+            gmsh.model.addPhysicalGroup(d - 1, f, (OUTER_A, OUTER_B)[sub])
     if layout.contact is not None:
         x0, x1, y = layout.contact
         faces = [faces_in(x0, y, -big, x1, y, big, sub) for sub in (0, 1)]
