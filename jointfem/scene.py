@@ -604,15 +604,18 @@ def _continuum(top: _Table, kind: str, path):
             c.fail("patches_only", c.data["patches_only"], "must be true or false")
         if contact["patches_only"] and not bolts:
             c.fail("patches_only", True, "needs at least one [[contact.bolt]]")
-        contact["preload"] = c.string("preload", "uniform", choices=("uniform", "static"))
+        # bolts load the outer faces through a static contact solve unless the scene asks for patches
+        contact["preload"] = c.string("preload", "static" if bolts else "uniform", choices=("uniform", "static"))
         if contact["preload"] == "static":
+            chosen = "" if c.has("preload") else " (the default with bolts; preload = \"uniform\" spreads each bolt's " \
+                                                 "force over the contact nodes under it instead)"
             if not bolts:
                 c.fail("preload", "static", "needs at least one [[contact.bolt]] (the bolts load the outer faces)")
             if contact["pressure"] > 0:
                 c.fail("pressure", contact["pressure"], "with preload = \"static\" the pressure comes from the static "
-                       "contact solve: leave pressure out")
+                       f"contact solve: leave pressure out{chosen}")
             if contact["patches_only"]:
-                c.fail("patches_only", True, "with preload = \"static\" the static solve decides which pairs touch")
+                c.fail("patches_only", True, f"with preload = \"static\" the static solve decides which pairs touch{chosen}")
         c.done()
     dm = top.table("damping", required=False)
     dm.string("kind", "rayleigh", choices=("rayleigh",))

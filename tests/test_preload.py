@@ -122,6 +122,20 @@ def test_static_preload_scene_errors(tmp_path, extra, key, why):
     assert why in str(exc.value)
 
 
+def test_bolts_default_to_the_static_preload(tmp_path):
+    """Without a preload key, bolts load the outer faces through the static solve; with a pressure
+    beside them the error names the default and the way to the patches."""
+    p = bolted(tmp_path)
+    p.write_text(p.read_text().replace('preload = "static"', ""))
+    assert load_scene(p).model.preload == "static"
+    p.write_text(p.read_text().replace("[[contact.bolt]]", "pressure = 1.0e5\n[[contact.bolt]]"))
+    with pytest.raises(SceneError, match=r"contact\.pressure = 100000\.0: .*leave pressure out \(the default with "
+                                         r"bolts; preload = \"uniform\""):
+        load_scene(p)
+    p.write_text(p.read_text().replace("pressure = 1.0e5", 'preload = "uniform"'))
+    assert load_scene(p).model.preload == "uniform"
+
+
 def test_static_preload_needs_a_bolt(tmp_path):
     text = (ROOT / "demos" / "lap3d_friction.toml").read_text().replace("pressure = 1.0e6", 'preload = "static"')
     p = tmp_path / "nobolt.toml"
