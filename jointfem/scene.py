@@ -172,6 +172,8 @@ class _Table:
 
     def table(self, k: str, *, required=True) -> "_Table":
         v = self.raw(k, _REQUIRED if required else {})
+        if not isinstance(v, dict):
+            self.fail(k, v, "must be a table ([...] or { key = value, ... })")
         return _Table(self.path, v, self.key(k))
 
     def tables(self, k: str, *, required=True) -> list["_Table"]:
@@ -616,6 +618,7 @@ def _continuum(top: _Table, kind: str, path):
                        f"contact solve: leave pressure out{chosen}")
             if contact["patches_only"]:
                 c.fail("patches_only", True, f"with preload = \"static\" the static solve decides which pairs touch{chosen}")
+        contact["gap"] = _gap_profile(c, dim, geo, path, contact) if c.has("gap") else None
         c.done()
     dm = top.table("damping", required=False)
     dm.string("kind", "rayleigh", choices=("rayleigh",))
@@ -642,6 +645,48 @@ def _continuum(top: _Table, kind: str, path):
     supports = tuple(_support(s, dim, box) for s in top.tables("support", required=False))
     return ContinuumSpec(**geo, **mesh, **material, **contact, **damping, **force, outputs=outputs,
                          supports=supports, source=str(path))
+
+
+def _gap_profile(c: _Table, dim: int, geo: dict, path, contact: dict):
+    """[contact.gap]: the interface's initial gaps from its geometry (fem.continuum.GapProfile)."""
+    from .fem.continuum import GapProfile
+
+    t = c.table("gap")
+    kind = t.string("kind", choices=("crown", "table"))
+    L, W, x0 = geo["length"], geo["width"], geo["length"] - geo["overlap"]
+    if contact["preload"] == "uniform" and (contact["pressure"] > 0 or contact["bolts"]):
+        t.fail("kind", kind, "initial gaps need preload = \"static\" to say which pairs the bolts close (a "
+                             "prescribed pressure cannot), or no preload at all")
+    if kind == "crown":
+        centre = t.raw("centre", [(x0 + L) / 2, W / 2][:dim - 1])
+        if (not isinstance(centre, list) or len(centre) != dim - 1
+                or not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in centre)):
+            t.fail("centre", centre, f"must be [x{', z' if dim == 3 else ''}] in m, where the faces touch")
+        radius = t.number("radius", gt=0)
+        t.done()
+        return GapProfile("crown", tuple(float(v) for v in centre), radius)
+    name = t.string("file")
+    f = Path(name) if Path(name).is_absolute() else Path(str(path)).resolve().parent / name
+    cols = ("x", "gap") if dim == 2 else ("x", "z", "gap")
+    try:
+        data = np.genfromtxt(f, delimiter=",", names=True, dtype=float, encoding="utf-8")
+    except OSError as exc:
+        t.fail("file", name, f"cannot be read ({exc.strerror or exc})")
+    except ValueError as exc:
+        t.fail("file", name, f"is not a CSV table with a header line ({exc})")
+    if data.dtype.names is None or tuple(data.dtype.names) != cols:
+        t.fail("file", name, f"must be a CSV table with the header {','.join(cols)} (m), "
+                             f"got {','.join(data.dtype.names or ())}")
+    rows = np.atleast_1d(data)
+    pts = np.column_stack([rows[k] for k in cols])
+    if pts.shape[0] < (2 if dim == 2 else 3) or not np.all(np.isfinite(pts)):
+        t.fail("file", name, f"needs at least {2 if dim == 2 else 3} rows of finite numbers")
+    bad = np.flatnonzero(pts[:, -1] < 0)
+    if bad.size:
+        t.fail("file", name, f"row {int(bad[0]) + 2} has gap = {pts[bad[0], -1]:g} m: gaps are >= 0 (an "
+                             f"interference would be a preload)")
+    t.done()
+    return GapProfile("table", points=tuple(map(tuple, pts.tolist())), source=str(f))
 
 
 def _support(s: _Table, dim: int, box):

@@ -53,6 +53,44 @@ class Bolt:
 
 
 @dataclass(frozen=True)
+class GapProfile:
+    """The interface's initial normal gap g0(x, z) >= 0, m, between the faces at rest (before any
+    preload): ``crown``, a spherical crown touching at ``centre`` (x, z) with ``radius`` of
+    curvature, g0 = |p - centre|^2 / (2 radius) (in 2D the cylinder (x - x_c)^2 / (2 radius));
+    ``table``, measured topology, g0 interpolated linearly from ``points`` (x, z, gap) rows (2D: x,
+    gap), the mesoscale topology of a real interface.  ``source``: where the table came from."""
+
+    kind: str  # "crown" | "table"
+    centre: tuple[float, ...] = ()
+    radius: float = 0.0
+    points: tuple[tuple[float, ...], ...] = ()
+    source: str = ""
+
+    def at(self, xz: np.ndarray, dim: int, where: str) -> np.ndarray:
+        """g0 at the pair positions ``xz`` (P, 2): (x, z) columns (z unused in 2D)."""
+        if self.kind == "crown":
+            d = xz[:, :dim - 1] - np.asarray(self.centre[:dim - 1])
+            return np.sum(d * d, axis=1) / (2.0 * self.radius)
+        pts = np.asarray(self.points, float)
+        if dim == 2:
+            x = pts[:, 0]
+            order = np.argsort(x)
+            out = (xz[:, 0] < x.min() - 1e-12) | (xz[:, 0] > x.max() + 1e-12)
+            g = np.interp(xz[:, 0], x[order], pts[order, 1])
+        else:
+            from scipy.interpolate import LinearNDInterpolator
+
+            g = LinearNDInterpolator(pts[:, :2], pts[:, 2])(xz)  # NaN outside the points' convex hull
+            out = ~np.isfinite(g)
+        if out.any():
+            k = int(np.flatnonzero(out)[0])
+            raise ContinuumError(f"{where}: {int(out.sum())} contact pairs lie outside the points of {self.source} "
+                                 f"(the first at x = {xz[k, 0]:.6g}, z = {xz[k, 1]:.6g} m): the table must cover "
+                                 f"the whole interface")
+        return np.asarray(g, float)
+
+
+@dataclass(frozen=True)
 class Support:
     """A soft support, such as a bungee cord: springs of ``stiffness`` N/m (along x, y, z) from
     the outer face that ``at`` lies on to ground, shared equally by that face's nodes within
@@ -92,6 +130,7 @@ class ContinuumSpec:
     # the outer faces under their washers (radius) and a static contact solve gives N0 per pair and
     # the gaps of the pairs it leaves open (models.preload)
     preload: str = "uniform"
+    gap: GapProfile | None = None  # the interface's initial gaps from its geometry (None: flat faces)
     supports: tuple[Support, ...] = ()  # soft springs to ground (a free-free test article's bungees)
     rayleigh_alpha: float = 0.0  # 1/s
     rayleigh_beta: float = 0.0  # s
@@ -451,7 +490,7 @@ def support_springs(mesh: Mesh, spec: ContinuumSpec) -> np.ndarray:
     return k
 
 
-def static_preload(mesh: Mesh, spec: ContinuumSpec, K, G, free, kt, kn):
+def static_preload(mesh: Mesh, spec: ContinuumSpec, K, G, free, kt, kn, g0=None):
     """The static contact state under the bolts' washer loads (models.preload)."""
     from ..models.preload import solve_static_contact
 
@@ -459,7 +498,7 @@ def static_preload(mesh: Mesh, spec: ContinuumSpec, K, G, free, kt, kn):
     if np.abs(np.delete(F, free)).max(initial=0.0) > 0:
         raise ContinuumError(f"{spec.source}: a bolt's washer covers a clamped node")
     try:
-        return solve_static_contact(K, G, kt, kn, F[free], num_tangential=mesh.dim - 1,
+        return solve_static_contact(K, G, kt, kn, F[free], num_tangential=mesh.dim - 1, g0=g0,
                                     what=f"{spec.source}: static preload")
     except LinAlgError as exc:
         raise ContinuumError(f"{exc} (a body held by the joint alone needs the joint closed under the bolts)") from None
@@ -498,6 +537,11 @@ def create_continuum(spec: ContinuumSpec, comm=None, mesh: Mesh | None = None) -
         total = area.sum()
         kt = spec.kt * area + spec.kt_total * area / total
         kn = spec.kn * area + spec.kn_total * area / total
+        g0 = None if spec.gap is None else spec.gap.at(mesh.coords[a][:, [0, 2]], d, spec.source)
+        if g0 is not None:  # a gap of the coordinates' round-off is contact
+            g0 = np.where(g0 > 1e-12 * mesh.extent, g0, 0.0)
+        if g0 is not None and spec.preload == "uniform":  # no preload (the scene checks): open by g0
+            N0 = np.where(g0 > 0, -kn * g0, N0)
         R = frames(mesh.normal[a], d)  # (P, m, d)
         P, m = a.size, d
         rows = np.repeat(np.arange(P * m), 2 * d)
@@ -512,18 +556,20 @@ def create_continuum(spec: ContinuumSpec, comm=None, mesh: Mesh | None = None) -
         K = (K + sp.diags(support_springs(mesh, spec)[free])).tocsr()
     if mesh.contact[0].size or mesh.contact[1].size:
         if spec.preload == "static":
-            st = static_preload(mesh, spec, K, gap_all[:, free].tocsr(), free, kt, kn)
+            st = static_preload(mesh, spec, K, gap_all[:, free].tocsr(), free, kt, kn, g0)
             N0 = st.N0
             use = st.tangential_use(np.full(P, spec.mu))
             pair_info = {"preload": "static", "static_iterations": st.iterations, "pairs_closed": int(st.closed.sum()),
                          "pairs_open": int((~st.closed).sum()), "bolt_force_N": float(sum(b.force for b in spec.bolts)),
                          "contact_area_closed_m2": float(area[st.closed].sum()),
                          "peak_pressure_Pa": float((N0 / area).max()),
-                         "largest_static_gap_m": float(max(-st.gaps[:, -1].min(), 0.0)),
+                         "largest_static_gap_m": float(max(-(st.N0 / kn).min(), 0.0)),
                          "static_tangential_use_max": float(use.max())}
         pairs = JenkinsPairs(kt=kt, kn=kn, mu=np.full(P, spec.mu), N0=N0, num_tangential=d - 1, has_normal=True)
         pair_info = {"num_pairs": int(P), "contact_area_m2": float(total), "preload_N": float(np.maximum(N0, 0).sum()),
                      **pair_info}
+        if g0 is not None:
+            pair_info.update(geometric_gap_max_m=float(g0.max()), pairs_open_at_rest=int((N0 < 0).sum()))
     M = mesh.M[free][:, free].tocsr()
     node_of = free // d
     comp_of = free % d
