@@ -618,6 +618,10 @@ def _continuum(top: _Table, kind: str, path):
                        f"contact solve: leave pressure out{chosen}")
             if contact["patches_only"]:
                 c.fail("patches_only", True, f"with preload = \"static\" the static solve decides which pairs touch{chosen}")
+        contact["preload_path"] = c.string("preload_path", "stuck", choices=("stuck", "frictionless"))
+        if contact["preload_path"] != "stuck" and contact["preload"] != "static":
+            c.fail("preload_path", contact["preload_path"], "is the static solve's loading path: it needs "
+                                                           "preload = \"static\"")
         contact["gap"] = _gap_profile(c, dim, geo, path, contact) if c.has("gap") else None
         c.done()
     dm = top.table("damping", required=False)

@@ -131,6 +131,10 @@ class ContinuumSpec:
     # the gaps of the pairs it leaves open (models.preload)
     preload: str = "uniform"
     gap: GapProfile | None = None  # the interface's initial gaps from its geometry (None: flat faces)
+    # the static solve's tangential law while the bolts tighten: "stuck" (each closed pair on its kt:
+    # nothing slips) or "frictionless" (no tangential force: what the dynamics, whose sliders start
+    # unloaded, assume; the bodies must then be held tangentially by clamps or supports)
+    preload_path: str = "stuck"
     supports: tuple[Support, ...] = ()  # soft springs to ground (a free-free test article's bungees)
     rayleigh_alpha: float = 0.0  # 1/s
     rayleigh_beta: float = 0.0  # s
@@ -497,11 +501,15 @@ def static_preload(mesh: Mesh, spec: ContinuumSpec, K, G, free, kt, kn, g0=None)
     F = washer_loads(mesh, spec)
     if np.abs(np.delete(F, free)).max(initial=0.0) > 0:
         raise ContinuumError(f"{spec.source}: a bolt's washer covers a clamped node")
+    frictionless = spec.preload_path == "frictionless"
     try:
-        return solve_static_contact(K, G, kt, kn, F[free], num_tangential=mesh.dim - 1, g0=g0,
-                                    what=f"{spec.source}: static preload")
+        return solve_static_contact(K, G, 0.0 * kt if frictionless else kt, kn, F[free], num_tangential=mesh.dim - 1,
+                                    g0=g0, what=f"{spec.source}: static preload")
     except LinAlgError as exc:
-        raise ContinuumError(f"{exc} (a body held by the joint alone needs the joint closed under the bolts)") from None
+        why = ("with preload_path = \"frictionless\" the joint holds nothing tangentially: clamp each body or "
+               "hold it by [[support]]s" if frictionless else
+               "a body held by the joint alone needs the joint closed under the bolts")
+        raise ContinuumError(f"{exc} ({why})") from None
 
 
 def create_continuum(spec: ContinuumSpec, comm=None, mesh: Mesh | None = None) -> Structure:
@@ -559,7 +567,8 @@ def create_continuum(spec: ContinuumSpec, comm=None, mesh: Mesh | None = None) -
             st = static_preload(mesh, spec, K, gap_all[:, free].tocsr(), free, kt, kn, g0)
             N0 = st.N0
             use = st.tangential_use(np.full(P, spec.mu))
-            pair_info = {"preload": "static", "static_iterations": st.iterations, "pairs_closed": int(st.closed.sum()),
+            pair_info = {"preload": "static", "preload_path": spec.preload_path, "static_iterations": st.iterations,
+                         "pairs_closed": int(st.closed.sum()),
                          "pairs_open": int((~st.closed).sum()), "bolt_force_N": float(sum(b.force for b in spec.bolts)),
                          "contact_area_closed_m2": float(area[st.closed].sum()),
                          "peak_pressure_Pa": float((N0 / area).max()),
