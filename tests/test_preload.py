@@ -232,6 +232,14 @@ force = 1200.0
 """
 
 
+def mirror(xz, axis, about):
+    """Index of each point's mirror image about the plane where column ``axis`` equals ``about``."""
+    image = xz.copy()
+    image[:, axis] = 2 * about - image[:, axis]
+    key = {tuple(k): i for i, k in enumerate(np.round(xz / 1e-7).astype(np.int64))}
+    return np.array([key[tuple(k)] for k in np.round(image / 1e-7).astype(np.int64)])
+
+
 def stack(tmp_path, dim=3, size=0.01, degree=2, nu=0.0, radius=0.05):
     p = tmp_path / f"stack{dim}.toml"
     p.write_text(STACK.format(dim=dim, size=size, degree=degree, nu=nu, radius=radius))
@@ -268,12 +276,8 @@ def test_washer_on_a_block_equilibrium_symmetry_and_convergence(tmp_path):
         g = s.contacts[0]
         pr = g.pairs.N0 / g.areas  # an open pair's is -kn g0 / area < 0
         assert g.pairs.N0[pr > 0].sum() == pytest.approx(1200.0, rel=1e-10)
-        for axis, about in ((0, 0.02), (2, 0.015)):
-            mirrored = g.coords.copy()
-            mirrored[:, axis] = 2 * about - mirrored[:, axis]
-            key = {tuple(np.round(c / 1e-7).astype(int)): i for i, c in enumerate(g.coords)}
-            j = np.array([key[tuple(np.round(c / 1e-7).astype(int))] for c in mirrored])
-            np.testing.assert_allclose(pr[j], pr, rtol=1e-8)
+        for axis, about in ((0, 0.02), (1, 0.015)):
+            np.testing.assert_allclose(pr[mirror(g.coords[:, [0, 2]], axis, about)], pr, rtol=1e-8)
         on_axis = np.argmin(np.hypot(g.coords[:, 0] - 0.02, g.coords[:, 2] - 0.015))
         assert pr[on_axis] == pytest.approx(pr.max(), rel=1e-12) and pr.max() > 1200.0 / (0.04 * 0.03)
         peak.append(pr.max())
@@ -307,11 +311,7 @@ def test_crowned_interface_touches_at_its_centre(tmp_path):
     r = np.hypot(*(xz - [0.02, 0.015]).T)
     assert r[closed].max() < r[~closed].min() + 1e-12
     for axis, about in ((0, 0.02), (1, 0.015)):
-        mirrored = xz.copy()
-        mirrored[:, axis] = 2 * about - mirrored[:, axis]
-        key = {tuple(np.round(c / 1e-7).astype(int)): i for i, c in enumerate(xz)}
-        j = np.array([key[tuple(np.round(c / 1e-7).astype(int))] for c in mirrored])
-        np.testing.assert_allclose(N0[j], N0, rtol=1e-8, atol=1e-10 * np.abs(N0).max())
+        np.testing.assert_allclose(N0[mirror(xz, axis, about)], N0, rtol=1e-8, atol=1e-10 * np.abs(N0).max())
     # the same crown as measured topology: a CSV of its values at the contact nodes
     rows = "\n".join(f"{x!r},{z!r},{gg!r}" for (x, z), gg in zip(xz, g0))
     (tmp_path / "topology.csv").write_text("x,z,gap\n" + rows + "\n")
