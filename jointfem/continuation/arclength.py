@@ -683,9 +683,13 @@ def continue_branch(fun: Callable, x0: np.ndarray, lam0: float, lam_end: float, 
             # Step control: grow after easy corrections, but keep the tangent turning at most
             # ``target_turn_deg`` per step so that peaks and folds are resolved, not stepped over
             # (measured from the direction stepped along, so a corner passed does not count).
+            # A turn is not shrunk below turn_ds_floor: at that length a turn beyond target_turn_deg
+            # is a kink, not curvature (a smooth branch would need a radius under 7 turn_ds_floor),
+            # and shrinking for it only followed the tangent's chatter between the pieces of
+            # neighbouring kinks, down to ds_min (issue 14: the lap joint's separated loop).
             turn = float(np.rad2deg(np.arccos(np.clip(d @ t, -1.0, 1.0))))
-            if turn > opts.target_turn_deg:
-                ds = max(ds * max(opts.target_turn_deg / turn, 0.25), opts.ds_min)
+            if turn > opts.target_turn_deg and ds > opts.turn_ds_floor:
+                ds = max(ds * max(opts.target_turn_deg / turn, 0.25), opts.turn_ds_floor)
             elif it <= opts.target_iter or (opts.secant_on_kinks and res > opts.newton.tol):
                 # (a corrector stalled on a kink takes stall_iter iterations whatever the step)
                 ds = min(ds * opts.grow, opts.ds_max)
