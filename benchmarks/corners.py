@@ -7,6 +7,8 @@ residual (max|R| / max|F|) and the located peak.  Writes a Markdown table.
 
     .venv/bin/python benchmarks/corners.py --out docs/benchmarks_corners.md [--jobs 2] [--quick]
     .venv/bin/python benchmarks/corners.py --case 'lap3d 3 N, exact' --budget 900   (one row, printed)
+    .venv/bin/python benchmarks/corners.py --case 'lap3d 3 N, penalty:10' --budget 1200 --max-points 20000 \
+        --log /tmp/penalty.log                      (one row, with the continuation's debug log)
 
 Each sweep runs in its own process (``--jobs`` at a time), through jointfem.app.solve_scene as
 `jointfem frf` does, with stability off (it is not what is measured here).
@@ -68,7 +70,7 @@ def scene_at_force(path: Path, force: float, tmp: Path) -> Path:
     return p
 
 
-def run(case_variant):
+def run(case_variant, max_points=None):
     (label, scene, method, modes, force, H, N, budget), variant = case_variant
     from jointfem.analysis.frf import compute_frf
     from jointfem.app import override_harmonics, sweep_options
@@ -80,7 +82,8 @@ def run(case_variant):
     with tempfile.TemporaryDirectory() as tmp:
         sc = override_harmonics(load_scene(scene_at_force(ROOT / scene, force, Path(tmp))), H, N)
         opts = sweep_options(sc, stability="off")
-        cont = replace(opts.continuation, time_limit=budget, **(OLD if variant == "before" else {}))
+        cont = replace(opts.continuation, time_limit=budget, **(OLD if variant == "before" else {}),
+                       **({"max_points": max_points} if max_points else {}))
         opts = replace(opts, continuation=cont)
         st = create_structure(sc)
         model = st if method == "full" else build_rom(st, method, RomOptions(modes=modes or 20))
@@ -115,15 +118,24 @@ def main():
     ap.add_argument("--case", action="append", default=[], metavar="LABEL",
                     help="only this case (repeatable), e.g. 'lap3d 3 N, exact'; prints its row, writes no table")
     ap.add_argument("--budget", type=float, help="with --case: its time budget in s instead of the table's")
+    ap.add_argument("--max-points", type=int, help="with --case: the sweep's point limit instead of the default")
+    ap.add_argument("--log", metavar="FILE", help="with --case: write the continuation's debug log (every point, "
+                                                  "refused step and corner) to FILE")
     args = ap.parse_args()
     if args.case:
+        if args.log:
+            import logging
+
+            logging.basicConfig(filename=args.log, level=logging.WARNING,
+                                format="%(relativeCreated)d %(name)s %(message)s")
+            logging.getLogger("jointfem.continuation").setLevel(logging.DEBUG)
         unknown = sorted(set(args.case) - {c[0] for c in CASES})
         if unknown:
             ap.error(f"--case {unknown}: not among {[c[0] for c in CASES]}")
         for c in CASES:
             if c[0] in args.case:
                 c = c[:7] + ((args.budget,) if args.budget else c[7:])
-                print(json.dumps(run((c, "now"))), flush=True)
+                print(json.dumps(run((c, "now"), args.max_points)), flush=True)
         return
     cases = [c for c in CASES if not args.quick or c[0] in QUICK]
     work = [(c, "now") for c in cases] + ([] if args.skip_before else [(c, "before") for c in cases])
