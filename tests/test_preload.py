@@ -438,3 +438,14 @@ def test_preload_path_needs_the_static_solve(tmp_path):
     p.write_text(text)
     with pytest.raises(SceneError, match=r"contact\.preload_path = 'frictionless': is the static solve's loading path"):
         load_scene(p)
+
+
+def test_bolts_on_a_stack_clamped_on_both_faces_are_one_error(tmp_path):
+    """Both outer faces clamped: the washers would load nothing; said before any solve."""
+    from jointfem.fem.continuum import ContinuumError
+
+    p = tmp_path / "both.toml"
+    p.write_text(STACK.format(dim=3, size=0.01, degree=2, nu=0.3, radius=0.05).replace(
+        'width = 0.03\n', 'width = 0.03\nclamped = ["A", "B"]\n', 1))
+    with pytest.raises(ContinuumError, match=r"both outer faces are clamped, so the bolts' washers load nothing"):
+        create_structure(load_scene(p))

@@ -450,9 +450,13 @@ def washer_loads(mesh: Mesh, spec: ContinuumSpec) -> np.ndarray:
     n = n / np.linalg.norm(n)  # A's outward normal on the joint: from A to B
     F = np.zeros(d * mesh.coords.shape[0])
     layout = spec.layout()
+    on_clamp = [layout.clamps[sub] == (1, layout.outer[sub]) for sub in (0, 1)]
+    if all(on_clamp):
+        raise ContinuumError(f"{spec.source}: both outer faces are clamped, so the bolts' washers load nothing: "
+                             f"leave one body free of its clamp (geometry.clamped)")
     for k, (bolt, w) in enumerate(zip(spec.bolts, mesh.washers)):
         for sub, sign in ((0, 1.0), (1, -1.0)):
-            if layout.clamps[sub] == (1, layout.outer[sub]):
+            if on_clamp[sub]:
                 continue
             ws = np.where(mesh.sub == sub, w, 0.0)
             if not ws.sum() > 0:
