@@ -149,7 +149,8 @@ def brb_meshes() -> list[str]:
             f"mesh lies {along[1] / along[-1] - 1:+.1%} from the finest): "
             "it is set by how much of the interface carries load and how "
             "stiffly, and the node-to-node pairs resolve the contact edge to one element (the closed area "
-            "changes by steps), so each mesh moves the edge of the pressure cone.  Refining through the thickness moves it by less (rows 2 and 3).  "
+            "changes by steps), so each mesh moves the edge of the pressure cone.  Refining through the "
+            "thickness moves it by less (rows 2 and 3).  "
             "docs/brb.md states this beside its comparison with the published data.", ""]
 
 

@@ -74,12 +74,12 @@ def bolted(tmp_path, kn="2.0e11", extra=""):
     return p
 
 
-def mirror_pairs(coords, width=0.025):
-    """Index of each pair's mirror image about the bolt's plane z = width / 2."""
-    key = np.round(coords[:, [0, 2]] / 1e-6).astype(np.int64)
-    mir = np.round(np.column_stack([coords[:, 0], width - coords[:, 2]]) / 1e-6).astype(np.int64)
-    lookup = {tuple(k): i for i, k in enumerate(key)}
-    return np.array([lookup[tuple(m)] for m in mir])
+def mirror(xz, axis, about):
+    """Index of each point's mirror image about the plane where column ``axis`` equals ``about``."""
+    image = xz.copy()
+    image[:, axis] = 2 * about - image[:, axis]
+    key = {tuple(k): i for i, k in enumerate(np.round(xz / 1e-7).astype(np.int64))}
+    return np.array([key[tuple(k)] for k in np.round(image / 1e-7).astype(np.int64)])
 
 
 def test_bolted_lap_equilibrium_symmetry_and_dynamics(tmp_path):
@@ -90,7 +90,7 @@ def test_bolted_lap_equilibrium_symmetry_and_dynamics(tmp_path):
     pairs, coords = s.contacts[0].pairs, s.contacts[0].coords
     assert s.info["preload"] == "static" and s.info["pairs_open"] == 0
     assert pairs.N0.sum() == pytest.approx(750.0, rel=1e-8)
-    np.testing.assert_allclose(pairs.N0[mirror_pairs(coords)], pairs.N0, rtol=1e-8)
+    np.testing.assert_allclose(pairs.N0[mirror(coords[:, [0, 2]], 1, 0.0125)], pairs.N0, rtol=1e-8)
     pressure = pairs.N0 / s.contacts[0].areas
     assert pressure.max() > 1.0e6 and s.info["peak_pressure_Pa"] == pytest.approx(pressure.max())
     assert s.info["static_tangential_use_max"] < 0.1  # the preload is far from slipping
@@ -230,14 +230,6 @@ z = 0.015
 radius = {radius}
 force = 1200.0
 """
-
-
-def mirror(xz, axis, about):
-    """Index of each point's mirror image about the plane where column ``axis`` equals ``about``."""
-    image = xz.copy()
-    image[:, axis] = 2 * about - image[:, axis]
-    key = {tuple(k): i for i, k in enumerate(np.round(xz / 1e-7).astype(np.int64))}
-    return np.array([key[tuple(k)] for k in np.round(image / 1e-7).astype(np.int64)])
 
 
 def stack(tmp_path, dim=3, size=0.01, degree=2, nu=0.0, radius=0.05):
@@ -426,7 +418,7 @@ def test_frictionless_path_on_the_bolted_lap(tmp_path):
     p.write_text(text.replace('\npreload = "static"', '\npreload = "static"\npreload_path = "frictionless"'))
     free = create_structure(load_scene(p))
     a, b = stuck.contacts[0].pairs.N0, free.contacts[0].pairs.N0
-    np.testing.assert_allclose(b[mirror_pairs(free.contacts[0].coords)], b, rtol=1e-8)
+    np.testing.assert_allclose(b[mirror(free.contacts[0].coords[:, [0, 2]], 1, 0.0125)], b, rtol=1e-8)
     assert free.info["static_tangential_use_max"] == 0.0 < stuck.info["static_tangential_use_max"]
     assert 1e-4 < np.abs(b - a).max() / a.max() < 0.05
 

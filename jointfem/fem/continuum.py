@@ -450,7 +450,7 @@ def washer_loads(mesh: Mesh, spec: ContinuumSpec) -> np.ndarray:
     n = n / np.linalg.norm(n)  # A's outward normal on the joint: from A to B
     F = np.zeros(d * mesh.coords.shape[0])
     layout = spec.layout()
-    on_clamp = [layout.clamps[sub] == (1, layout.outer[sub]) for sub in (0, 1)]
+    on_clamp = [layout.outer_clamped(sub) for sub in (0, 1)]
     if all(on_clamp):
         raise ContinuumError(f"{spec.source}: both outer faces are clamped, so the bolts' washers load nothing: "
                              f"leave one body free of its clamp (geometry.clamped)")
@@ -549,11 +549,12 @@ def create_continuum(spec: ContinuumSpec, comm=None, mesh: Mesh | None = None) -
         total = area.sum()
         kt = spec.kt * area + spec.kt_total * area / total
         kn = spec.kn * area + spec.kn_total * area / total
-        g0 = None if spec.gap is None else spec.gap.at(mesh.coords[a][:, [0, 2]], d, spec.source)
-        if g0 is not None:  # a gap of the coordinates' round-off is contact
-            g0 = np.where(g0 > 1e-12 * mesh.extent, g0, 0.0)
-        if g0 is not None and spec.preload == "uniform":  # no preload (the scene checks): open by g0
-            N0 = np.where(g0 > 0, -kn * g0, N0)
+        g0 = None
+        if spec.gap is not None:
+            g0 = spec.gap.at(mesh.coords[a][:, [0, 2]], d, spec.source)
+            g0 = np.where(g0 > 1e-12 * mesh.extent, g0, 0.0)  # a gap of the coordinates' round-off is contact
+            if spec.preload == "uniform":  # no preload (the scene checks): each pair open by its g0
+                N0 = np.where(g0 > 0, -kn * g0, N0)
         R = frames(mesh.normal[a], d)  # (P, m, d)
         P, m = a.size, d
         rows = np.repeat(np.arange(P * m), 2 * d)

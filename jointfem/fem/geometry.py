@@ -58,6 +58,11 @@ class Layout:
     extent: float  # the model size, m (for tolerances)
     outer: tuple[float, float] | None = None
 
+    def outer_clamped(self, sub: int) -> bool:
+        """Is substructure ``sub``'s outer face its clamp (the stack's base)?  Then a washer there
+        loads the clamp, and the face carries no washer tag."""
+        return self.outer is not None and self.clamps[sub] == (1, self.outer[sub])
+
 
 def _ends(x_a: float, x_b: float, clamped: tuple[bool, bool]):
     """Clamps at the end faces x = x_a of A and x = x_b of B, where ``clamped`` says so."""
@@ -210,7 +215,7 @@ def build(layout: Layout, size: float, *, name: str = "jointfem", size_normal: f
         if f:
             gmsh.model.addPhysicalGroup(d - 1, f, (CLAMP_A, CLAMP_B)[end])
     for sub, y in enumerate(layout.outer or ()):
-        if layout.clamps[sub] == (1, y):  # a clamped outer face: the clamp carries a washer's load
+        if layout.outer_clamped(sub):
             continue
         f = faces_in(*plane(1, y), sub)
         if f:
