@@ -441,3 +441,16 @@ def test_bolts_on_a_stack_clamped_on_both_faces_are_one_error(tmp_path):
         'width = 0.03\n', 'width = 0.03\nclamped = ["A", "B"]\n', 1))
     with pytest.raises(ContinuumError, match=r"both outer faces are clamped, so the bolts' washers load nothing"):
         create_structure(load_scene(p))
+
+
+@pytest.mark.parametrize("old, new, key, why", [
+    ("width = 0.03\n", "width = 0.03\noverlap = 0.01\n", "geometry.overlap", "covers its base"),
+    ('preload = "static"\n', 'preload = "static"\ngap = 1e-6\n', "contact.gap", "must be a table"),
+])
+def test_stack_and_gap_key_errors(tmp_path, old, new, key, why):
+    """A stack has no overlap key (its joint is the whole length); [contact.gap] must be a table."""
+    p = tmp_path / "bad.toml"
+    p.write_text(STACK.format(dim=3, size=0.01, degree=2, nu=0.3, radius=0.05).replace(old, new, 1))
+    with pytest.raises(SceneError, match=key.replace(".", r"\.")) as exc:
+        load_scene(p)
+    assert why in str(exc.value)
