@@ -61,6 +61,9 @@ class SolverSpec:
     # "sampled": the Jenkins law at the AFT's samples; "events": switches located between samples
     # and the forces integrated over the pieces (jointfem.contact._events; one tangential direction)
     aft: str = "sampled"
+    # the band a branch may leave the sweep window into at a fold and still come back from (rad/s);
+    # None: the window widened by its span on each side (jointfem.analysis.frf)
+    omega_limits: tuple[float, float] | None = None
 
     @property
     def omega_start(self) -> float:
@@ -225,6 +228,15 @@ def _solver(t: _Table) -> SolverSpec:
     if N < 2 * (H_max if auto else H) + 1:
         t.fail("samples", N, f"must be >= 2*{'harmonics_max' if auto else 'harmonics'}+1 = {2 * (H_max if auto else H) + 1}")
     ds_min, ds_max = t.number("ds_min", SolverSpec.ds_min, gt=0), t.number("ds_max", SolverSpec.ds_max, gt=0)
+    limits = None
+    if t.has("omega_limits"):
+        lim = t.raw("omega_limits")
+        if (not isinstance(lim, list) or len(lim) != 2 or not all(
+                isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in lim)):
+            t.fail("omega_limits", lim, "must be [low, high] in rad/s")
+        if not (0 <= lim[0] <= lo and hi <= lim[1]):
+            t.fail("omega_limits", lim, f"must contain omega_range = [{lo:g}, {hi:g}] (and low >= 0)")
+        limits = (float(lim[0]), float(lim[1]))
     spec = SolverSpec(
         omega_min=lo, omega_max=hi, direction=t.string("direction", "up", choices=("up", "down")),
         harmonics=H, samples=N,
@@ -233,7 +245,8 @@ def _solver(t: _Table) -> SolverSpec:
         tol=t.number("tol", SolverSpec.tol, gt=0), max_points=t.integer("max_points", SolverSpec.max_points, ge=2),
         kink_tol=t.number("kink_tol", SolverSpec.kink_tol, gt=0),
         time_limit=t.number("time_limit", SolverSpec.time_limit, gt=0), harmonics_auto=auto, harmonic_target=target,
-        harmonics_max=H_max, samples_given=t.has("samples"), aft=t.string("aft", "sampled", choices=AFT_KINDS))
+        harmonics_max=H_max, samples_given=t.has("samples"), aft=t.string("aft", "sampled", choices=AFT_KINDS),
+        omega_limits=limits)
     if spec.kink_tol > 1e-3:
         t.fail("kink_tol", spec.kink_tol, "must be <= 1e-3 (a residual of 0.1 % of the force)")
     if not spec.ds_min <= spec.ds0 <= spec.ds_max:

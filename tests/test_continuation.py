@@ -4,8 +4,9 @@ import re
 import numpy as np
 import pytest
 
-from jointfem.continuation.arclength import (ContinuationError, ContinuationOptions, ConvergenceError, NewtonOptions,
-                                             continue_branch, correct, hyperplane_derivative, solve_newton)
+from jointfem.continuation.arclength import (ContinuationError, ContinuationOptions, ContinuationPoint, ConvergenceError,
+                                             NewtonOptions, _retraced, continue_branch, correct, hyperplane_derivative,
+                                             solve_newton)
 
 
 def folded(x, lam):
@@ -192,3 +193,42 @@ def test_kinks_closer_than_the_turn_floor_do_not_collapse_the_step():
     np.testing.assert_allclose(x, sawtooth(np.zeros(lam.size), lam)[0] * -1, atol=1e-12)
     assert lam[-1] >= 0.02 and len(pts) < 200
 
+
+
+def _polyline(z):
+    """ContinuationPoints at the rows (x..., lam) of z."""
+    return [ContinuationPoint(np.array(row[:-1], float), float(row[-1]), 0, 0.0) for row in z]
+
+
+def _turned(last, incoming, deg, h):
+    """The point a step of length h from ``last`` reaches, turned by ``deg`` from ``incoming`` (2D)."""
+    a = np.deg2rad(deg)
+    d = incoming / np.linalg.norm(incoming)
+    return last + h * np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]]) @ d
+
+
+def test_retrace_rule_tells_a_step_back_from_folds_and_corners():
+    """The rule that refuses a step back along the branch (ContinuationOptions.retrace_tol = 0.1):
+    a point on the traced polyline (to 1e-6 of the step, the chords' error on the 3D lap joint's
+    retrace) walked backwards is found, with the segment it lies on; the legs of a smooth fold and of
+    a corner that turns by 150 deg (the most a step may turn, max_reversal_deg = 30) part at half the
+    step or more, ten times the tolerance, and are not; a turn of 175 deg is."""
+    s = np.linspace(0.0, 1.0, 11)
+    line = _polyline(np.column_stack([s, s]))  # x = lam, traced up to lam = 1
+    last = np.array([1.0, 1.0])
+    back = np.array([0.95, 0.95 + 1e-6 * 0.05])
+    assert _retraced(line, np.ones(1), 1.0, last, back, 0.1) == 9  # on segment 0.9-1.0
+    assert _retraced(line, np.ones(1), 1.0, np.array([0.3, 0.3]), np.array([0.35, 0.35]), 0.1) is None  # forward
+    up = np.array([1.0, 1.0])
+    assert _retraced(line, np.ones(1), 1.0, last, _turned(last, up, 150.0, 0.05), 0.1) is None
+    assert _retraced(line, np.ones(1), 1.0, last, _turned(last, up, 175.0, 0.05), 0.1) is not None
+    # in scaled coordinates: x_scale and lam_scale divide before the distances are taken
+    assert _retraced(_polyline(np.column_stack([1e-3 * s, 50.0 * s])), np.full(1, 1e-3), 50.0,
+                     np.array([1.0, 1.0]), back, 0.1) == 9
+    # a smooth fold: lam = cos(theta), x = sin(theta), traced in 8 deg steps up to the fold at
+    # theta = 0 and one step beyond it
+    th = np.deg2rad(np.arange(-90.0, 1.0, 8.0))
+    fold = _polyline(np.column_stack([np.sin(th), np.cos(th)]))
+    nxt = th[-1] + np.deg2rad(8.0)
+    assert _retraced(fold, np.ones(1), 1.0, np.array([np.sin(th[-1]), np.cos(th[-1])]),
+                     np.array([np.sin(nxt), np.cos(nxt)]), 0.1) is None

@@ -41,6 +41,10 @@ BAD = {
     "beam odd elements": (BEAM.replace("elements = 20", "elements = 21"), "beam.elements", "21"),
     "unknown kind": (SDOF.replace('kind = "lumped"', 'kind = "shell"'), "kind", "shell"),
     "jenkins dof": (SDOF.replace('between = ["m", "ground"]', 'between = ["m.y", "ground"]'), "jenkins[0].between", "m.y"),
+    "omega_limits inside the range": (SDOF.replace("[0.5, 2.0]", "[0.5, 2.0]\nomega_limits = [0.6, 3.0]"),
+                                      "solver.omega_limits", "[0.6, 3.0]"),
+    "omega_limits not a pair": (SDOF.replace("[0.5, 2.0]", "[0.5, 2.0]\nomega_limits = 3.0"),
+                                "solver.omega_limits", "3.0"),
     "jenkins dof axis": (SDOF.replace('between = ["m", "ground"]\ntangential = ["x"]',
                                       'between = ["m.x", "ground"]\ntangential = ["y"]'),
                          "jenkins[0].between", "['m.x', 'ground']"),
@@ -233,3 +237,16 @@ def test_jenkins_between_names_dofs_as_a_spring_does(tmp_path):
     G[1] = 3.0  # slipping: |kt g| = 3 > mu N0 = 1
     fa, fb = (s.contacts[0].pairs.aft(G, h, jacobian=False).F for s in (a, b))
     assert np.array_equal(fa, fb) and np.abs(fa).max() > 0
+
+
+def test_omega_limits_reach_the_continuation(tmp_path):
+    """[solver] omega_limits is the band a frequency sweep's branch may leave its window into
+    (default None: the window widened by its span, analysis.frf); it reaches the sweep's options
+    and no other analysis's continuation (a force or amplitude sweep has its own bounds)."""
+    from jointfem.app import sweep_options
+
+    assert load_scene(_write(tmp_path, SDOF)).solver.omega_limits is None
+    scene = load_scene(_write(tmp_path, SDOF.replace("[0.5, 2.0]", "[0.5, 2.0]\nomega_limits = [0.1, 3.5]")))
+    opts = sweep_options(scene)
+    assert opts.omega_limits == (0.1, 3.5) and opts.continuation.lam_bounds is None
+

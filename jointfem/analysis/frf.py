@@ -38,6 +38,9 @@ class SweepOptions:
     # warn when a point's harmonic truncation estimate (analysis.convergence) passes this: the
     # first harmonic then changes by about e^2 / 4 when H grows by 2 (SDOF Jenkins, measured)
     harmonic_tol: float = 0.05
+    # the band (rad/s) the branch may leave the window into at a fold and still come back from; None:
+    # the window widened by its span on each side (continuation.lam_bounds, if set, wins)
+    omega_limits: tuple[float, float] | None = None
 
 
 class SweepIncomplete(ContinuationError):
@@ -139,7 +142,7 @@ def compute_frf(model: Structure | Reduction, options: SweepOptions, *,
                     problem.tol_floor)
         cont = replace(cont, newton=replace(cont.newton, tol=problem.tol_floor))
     if cont.lam_bounds is None:
-        cont = replace(cont, lam_bounds=(max(lo - (hi - lo), 0.0), hi + (hi - lo)))
+        cont = replace(cont, lam_bounds=options.omega_limits or (max(lo - (hi - lo), 0.0), hi + (hi - lo)))
     if cont.max_rel_change is None:
         # a forced response never passes through zero: a step that flips its sign went through an
         # unbounded (undamped) resonance or onto another branch, and is refused however short
@@ -241,7 +244,8 @@ def compute_frf(model: Structure | Reduction, options: SweepOptions, *,
         info["arrays"]["active"] = np.array([r.active for r in records])
     info["status"] = "complete" if stopped is None else "incomplete"
     if stopped is not None:
-        info["stop_reason"] = str(stopped).replace("lam = ", "omega [rad/s] = ").replace("lam_end", "omega_end")
+        info["stop_reason"] = (str(stopped).replace("lam = ", "omega [rad/s] = ").replace("lam_end", "omega_end")
+                               .replace("(lam_bounds)", "(widen [solver] omega_limits to follow it)"))
     frf = FrequencyResponse(
         omega=omega,
         U=X,

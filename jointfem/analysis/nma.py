@@ -501,8 +501,8 @@ def compute_backbone(model: Structure | Reduction, options: NmaOptions, *, callb
                        "rom_size": np.array([r.size for r in recs]),
                        "unknowns": np.array([r.unknowns for r in recs])}}
     if stopped is not None:
-        info["stop_reason"] = str(stopped).replace("lam = ", "log10(amplitude [m]) = ").replace("lam_end",
-                                                                                               "amplitude_end")
+        info["stop_reason"] = (str(stopped).replace("lam = ", "log10(amplitude [m]) = ")
+                               .replace("lam_end", "amplitude_end").replace(" (lam_bounds)", ""))
     info.update(problem.branch_info())
     warnings = []
     he = info["arrays"]["harmonic_error"]

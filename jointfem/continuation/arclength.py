@@ -128,6 +128,10 @@ class ContinuationOptions:
     # kink-aware steps: the secant is the tangent at a point whose corrector stalled on a kink, and a
     # tangent's turn beyond max_turn_deg that stays as large when the step halves is a corner, accepted
     secant_on_kinks: bool = True
+    # a step whose new point lies within this times its length of the branch already traced, walked the
+    # other way, is refused, however short (None: no such rule): a corner step can turn back onto the
+    # way it came (issue 14: the 3D lap joint's penalty ROM at 1712.87 rad/s), which no local rule sees
+    retrace_tol: float | None = 0.1
     time_limit: float | None = None  # s: the branch stops with a ContinuationError (points kept) past this
     newton: NewtonOptions = field(default_factory=NewtonOptions)
 
@@ -321,6 +325,39 @@ def hyperplane_derivative(fun: Callable, x: np.ndarray, lam: float, direction: t
     return space.full(w[:-1]), float(w[-1] * lam_scale)
 
 
+def _retraced(points: list, x_scale: np.ndarray, lam_scale: float, z_last: np.ndarray, z_new: np.ndarray,
+              tol: float) -> int | None:
+    """The index j of the first segment (points j, j+1) of the branch traced so far that the step from
+    z_last to z_new walks back along: z_new lies within ``tol`` times the step's length of it, and the
+    step and the segment are more than 120 deg apart.  None if there is none.
+
+    z = (x / x_scale, lam / lam_scale) over every coefficient, solved now or not (an adaptive problem's
+    unknowns change along the branch, its coefficients do not).  A branch never comes back onto
+    itself: a smooth fold's two legs part at the rate they are walked, and a corner's (a fold on a
+    kink, turning by at most 180 - max_reversal_deg) at half that rate or more, so a tolerance of a
+    tenth of the step tells them from a retrace, whose points lie on the old polyline to its chords'
+    error (1e-6 to 1e-5 of the scales against steps of 1e-4 to 1e-3 on the 3D lap joint)."""
+    n = len(points)
+    step = z_new - z_last
+    length = float(np.linalg.norm(step))
+    if n < 2 or length == 0.0:
+        return None
+    eps = tol * length
+    mu = np.fromiter((p.lam for p in points), float, n) / lam_scale
+    lo, hi = np.minimum(mu[:-1], mu[1:]) - eps, np.maximum(mu[:-1], mu[1:]) + eps
+    cand = np.flatnonzero((lo <= z_new[-1]) & (z_new[-1] <= hi))
+    if cand.size == 0:
+        return None
+    P0 = np.array([np.append(points[i].x / x_scale, mu[i]) for i in cand])
+    seg = np.array([np.append(points[i + 1].x / x_scale, mu[i + 1]) for i in cand]) - P0
+    L2 = np.maximum(np.einsum("ij,ij->i", seg, seg), 1e-300)
+    t = np.clip(np.einsum("ij,ij->i", z_new - P0, seg) / L2, 0.0, 1.0)
+    dist = np.linalg.norm(P0 + t[:, None] * seg - z_new, axis=1)
+    cos = (seg @ step) / (np.sqrt(L2) * length)
+    hit = np.flatnonzero((dist <= eps) & (cos < -0.5))
+    return int(cand[hit[0]]) if hit.size else None
+
+
 @dataclass
 class ContinuationPoint:
     x: np.ndarray
@@ -452,7 +489,7 @@ def continue_branch(fun: Callable, x0: np.ndarray, lam0: float, lam_end: float, 
     cos_rev = -np.cos(np.deg2rad(opts.max_reversal_deg))
     redo = 0
     counts = stats if stats is not None else {}
-    counts.update(refused_steps=0, corners_passed=0, kinks_crossed=0, redone_steps=0)
+    counts.update(refused_steps=0, corners_passed=0, kinks_crossed=0, redone_steps=0, retraces_refused=0)
 
     def stop(why: str):
         return ContinuationError(f"continuation stopped at lam = {mu * lam_scale:.9g} before reaching "
@@ -514,7 +551,23 @@ def continue_branch(fun: Callable, x0: np.ndarray, lam0: float, lam_end: float, 
         elif cos_turn < cos_rev:
             # however short the step: a tangent that reverses retraces the branch backwards
             failure = f"tangent reversed ({np.rad2deg(np.arccos(np.clip(cos_turn, -1, 1))):.1f} deg)"
+        else:
+            failure = retraces(y_new, mu_new)
         return y_new, mu_new, it, res, t_new, orient_new, False, failure
+
+    def retraces(y_new, mu_new):
+        """Why the point (y_new, mu_new) is refused as a step back along the branch traced so far
+        (however short the step), or None."""
+        if opts.retrace_tol is None:
+            return None
+        z_new = np.append(space.full(y_new) / x_scale, mu_new)
+        j = _retraced(points, x_scale, lam_scale, np.append(points[-1].x / x_scale, points[-1].lam / lam_scale),
+                      z_new, opts.retrace_tol)
+        if j is None:
+            return None
+        counts["retraces_refused"] += 1
+        return (f"the step goes back along the branch traced at lam = {points[j].lam:.9g} "
+                f"(points {j}-{j + 1} of this branch)")
 
     def sign_at(z, d):
         """The orientation at z (0 where the bordered matrix is singular) and the Jacobian there."""
@@ -566,7 +619,7 @@ def continue_branch(fun: Callable, x0: np.ndarray, lam0: float, lam_end: float, 
             return None
         return z0 + hi * d, t2
 
-    def across(d, ds):
+    def across(d, ds, march=False):
         """A kink that the corrector on the hyperplane normal to d cannot cross, on a branch that goes
         on in lam: one step at fixed lam.
 
@@ -578,7 +631,13 @@ def continue_branch(fun: Callable, x0: np.ndarray, lam0: float, lam_end: float, 
         every step length, while Newton at fixed lam converges on the far side.  The predictor
         z + ds d is corrected at its lam; the point is accepted within max_jump step lengths of the
         last point, its tangent oriented along the secant (the orientation is read there again).
-        Returns attempt()'s tuple, or None where d does not advance lam."""
+        Returns attempt()'s tuple, or None where d does not advance lam.
+
+        ``march``: a step of ds in lam from the last point (d = the unit vector of lam), for a branch
+        whose own tangent leads back along it (the retrace rule refused every step): the point is
+        accepted wherever Newton from the last point converges at that lam, unless it lies on the
+        branch traced, and whichever way the piece beyond points (the steps after it are checked
+        again as any other)."""
         if d[-1] * direction <= 0:
             return None
         z0 = np.append(y, mu)
@@ -599,12 +658,14 @@ def continue_branch(fun: Callable, x0: np.ndarray, lam0: float, lam_end: float, 
             R, J, dl = g(y_new, mu_new)
             sec = np.append(y_new, mu_new) - z0
             jump = float(np.linalg.norm(sec))
-            if jump > opts.max_jump * ds:
+            if jump > opts.max_jump * ds and not march:
                 return None
             t_new, orient_new = _tangent(J, dl, sec / max(jump, 1e-300))
         except (ConvergenceError, np.linalg.LinAlgError, RuntimeError):
             return None
-        if t_new[-1] * direction <= 0:  # the piece beyond turns back: a fold on the kink, not a crossing
+        if t_new[-1] * direction <= 0 and not march:  # the piece beyond turns back: a fold on the kink
+            return None
+        if retraces(y_new, mu_new) is not None:
             return None
         return y_new, mu_new, it, res, t_new, orient_new, False, None
 
@@ -645,6 +706,12 @@ def continue_branch(fun: Callable, x0: np.ndarray, lam0: float, lam_end: float, 
                         counts["corners_passed"] += not changed
             if failure is not None and opts.kink_lam_steps and ds <= opts.corner_ds:
                 out = across(t, ds)
+                if out is None and failure.startswith("the step goes back"):
+                    # the branch's own tangent leads back along it: a step at fixed lam from the last
+                    # point towards lam_end, onto the branch beyond the corner (if there is one)
+                    e_lam = np.zeros(t.size)
+                    e_lam[-1] = direction
+                    out = across(e_lam, ds, march=True)
                 if out is not None:
                     log.debug("kink crossed at fixed lam=%.9g (%s)", out[1] * lam_scale, failure)
                     d = t
@@ -669,7 +736,7 @@ def continue_branch(fun: Callable, x0: np.ndarray, lam0: float, lam_end: float, 
                 continue
             if opts.lam_bounds is not None and not opts.lam_bounds[0] <= mu_new * lam_scale <= opts.lam_bounds[1]:
                 raise stop(f"the branch left [{opts.lam_bounds[0]:.6g}, {opts.lam_bounds[1]:.6g}] at lam = "
-                           f"{mu_new * lam_scale:.9g}: it turned back at a fold and does not come back to lam_end")
+                           f"{mu_new * lam_scale:.9g}: it turned back at a fold and does not come back to lam_end (lam_bounds)")
             redo = 0
             turned.clear()
             y, mu, t, orient = y_new, mu_new, t_new, orient_new
