@@ -66,7 +66,7 @@ def scene_at_force(path: Path, force: float, tmp: Path) -> Path:
         if section == "force" and s.startswith("amplitude"):
             line = f"amplitude = {force}"
         if section == "mesh" and s.startswith("file"):
-            line = f'file = "{(ROOT / data["mesh"]["file"]).as_posix()}"'
+            line = f'file = "{(path.parent / data["mesh"]["file"]).resolve().as_posix()}"'
         out.append(line)
     p = tmp / f"{path.stem}_{force:g}N.toml"
     p.write_text("\n".join(out) + "\n")

@@ -20,6 +20,7 @@ never see dolfinx.  Gap of pair p, in the frame (t1, [t2], n) of its A-side node
 """
 from __future__ import annotations
 
+import os
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -392,7 +393,9 @@ def _write_mesh(path: str, dim: int):
     points = xyz.reshape(-1, 3)[:, :dim] if dim == 2 else xyz.reshape(-1, 3)
     out = Path(path)
     out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = out.with_name(out.stem + ".tmp" + out.suffix)
+    # a name of this process's own: two runs that build the same scene's mesh at once (a benchmark's
+    # pool) each write whole and replace the file atomically, with the same content
+    tmp = out.with_name(f"{out.stem}.{os.getpid()}.tmp{out.suffix}")
     tag = [np.zeros(len(c[1]), dtype=int) for c in cells]
     meshio.write(tmp, meshio.Mesh(points, cells, cell_data={"gmsh:physical": tag, "gmsh:geometrical": tag}), **({"file_format": "gmsh22", "binary": False}
                                                       if out.suffix == ".msh" else {}))
