@@ -160,7 +160,7 @@ def main():
         f"{mp.cpu_count()} cores, {args.jobs} sweeps at a time) in {(time.time() - t0) / 60:.1f} min by",
         "",
         f"    .venv/bin/python benchmarks/corners.py --out {args.out} --jobs {args.jobs}"
-        + (" --quick" if args.quick else ""),
+        + (" --quick" if args.quick else "") + (" --skip-before" if args.skip_before else ""),
         "",
         "\"now\": the continuation with corner steps, secants on kinks and steps over kinks at fixed omega "
         "(docs/theory.md, Continuation). \"before\": the same sweep with all three off and 40 corrector "

@@ -635,9 +635,10 @@ def continue_branch(fun: Callable, x0: np.ndarray, lam0: float, lam_end: float, 
 
         ``march``: a step of ds in lam from the last point (d = the unit vector of lam), for a branch
         whose own tangent leads back along it (the retrace rule refused every step): the point is
-        accepted wherever Newton from the last point converges at that lam, unless it lies on the
-        branch traced, and whichever way the piece beyond points (the steps after it are checked
-        again as any other)."""
+        accepted within max_jump times the distance the tangent there predicts for that change of
+        lam (ds / |t_lam|, with |t_lam| taken as at least 0.01), unless it lies on the branch traced,
+        and whichever way the piece beyond points (the steps after it are checked as any other).
+        Measured on the 3D lap joint: 12.7 and 4.8 step lengths, where |t_lam| is about 0.08."""
         if d[-1] * direction <= 0:
             return None
         z0 = np.append(y, mu)
@@ -658,7 +659,7 @@ def continue_branch(fun: Callable, x0: np.ndarray, lam0: float, lam_end: float, 
             R, J, dl = g(y_new, mu_new)
             sec = np.append(y_new, mu_new) - z0
             jump = float(np.linalg.norm(sec))
-            if jump > opts.max_jump * ds and not march:
+            if jump > opts.max_jump * ds * (1.0 / max(abs(t[-1]), 1e-2) if march else 1.0):
                 return None
             t_new, orient_new = _tangent(J, dl, sec / max(jump, 1e-300))
         except (ConvergenceError, np.linalg.LinAlgError, RuntimeError):
