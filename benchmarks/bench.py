@@ -21,6 +21,7 @@ import os
 import platform
 import pstats
 import statistics
+import subprocess
 import sys
 import time
 from pathlib import Path
@@ -459,15 +460,31 @@ def bench_offline(path: Path, size: float = 0.003, command: str = "python benchm
     path.write_text("\n".join(lines))
 
 
+def _dirty() -> bool:
+    """True if the work tree differs from HEAD (a measurement of uncommitted code says so)."""
+    return bool(subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=ROOT,
+                               capture_output=True, text=True).stdout.strip())
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", default=str(ROOT / "docs" / "benchmarks.md"))
     ap.add_argument("--repeats", type=int, default=7, help="repeats of the AFT timing (sweeps: 3)")
     ap.add_argument("--offline-only", action="store_true", help="only the MPI offline-stage benchmark")
+    ap.add_argument("--aft-only", action="store_true", help="only the AFT timing, printed as table rows")
     ap.add_argument("--offline-out", default=str(ROOT / "docs" / "benchmarks_offline.md"))
     ap.add_argument("--no-peer", action="store_true", help="skip the pyHarm comparison (it needs its own venv)")
     args = ap.parse_args(argv)
     command = "make bench" if os.environ.get("MAKELEVEL") else "python benchmarks/bench.py"
+    if args.aft_only:
+        commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True,
+                                text=True).stdout.strip()
+        print(f"AFT with exact Jacobian, 1,000 3D pairs, N = 256, H = 5, median of {args.repeats}, commit {commit}"
+              f"{' + changes' if _dirty() else ''}")
+        for label, r in bench_aft(args.repeats).items():
+            share = " / ".join(f"{x:.2f}" for x in r["stick_slip_sep_share"])
+            print(f"| {label} | {share} | {1e3 * r['residual_only_s']:.1f} | {1e3 * r['with_jacobian_s']:.1f} | 50 ms |")
+        return 0
     if args.offline_only:
         bench_offline(Path(args.offline_out))
         print(Path(args.offline_out).read_text())

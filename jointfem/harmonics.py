@@ -90,12 +90,14 @@ class Harmonics:
         return gi
 
     def to_time(self, X: np.ndarray) -> np.ndarray:
-        """Coefficients of shape (num_hc, ...) -> samples of shape (N, ...), by inverse real FFT."""
+        """Coefficients of shape (num_hc, ...) -> samples of shape (N, ...): gamma @ X.
+
+        A product with the synthesis matrix, not an inverse FFT: only 2H + 1 of the N/2 + 1
+        frequencies are filled, and over 3000 columns (1000 3D pairs) the product took 0.3 ms
+        against the inverse real FFT's 10 ms at H = 3, N = 256, and 2.9 against 39 ms at H = 15,
+        N = 1024 (benchmarks/bench.py, AFT).  Same values to round-off."""
         X = np.asarray(X, dtype=float)
-        spec = np.zeros((self.N // 2 + 1,) + X.shape[1:], dtype=complex)
-        spec[0] = X[0] * self.N
-        spec[1 : self.H + 1] = 0.5 * self.N * (X[1::2] - 1j * X[2::2])
-        return np.fft.irfft(spec, n=self.N, axis=0)
+        return (self.gamma @ X.reshape(self.num_hc, -1)).reshape((self.N,) + X.shape[1:])
 
     def from_time(self, x_t: np.ndarray) -> np.ndarray:
         """Samples of shape (N, ...) -> coefficients of shape (num_hc, ...), by real FFT."""
