@@ -325,6 +325,9 @@ def hyperplane_derivative(fun: Callable, x: np.ndarray, lam: float, direction: t
     return space.full(w[:-1]), float(w[-1] * lam_scale)
 
 
+RETRACE = "the step goes back along the branch"  # the start of a step's failure by the retrace rule
+
+
 def _retraced(points: list, x_scale: np.ndarray, lam_scale: float, z_last: np.ndarray, z_new: np.ndarray,
               tol: float) -> int | None:
     """The index j of the first segment (points j, j+1) of the branch traced so far that the step from
@@ -566,8 +569,7 @@ def continue_branch(fun: Callable, x0: np.ndarray, lam0: float, lam_end: float, 
         if j is None:
             return None
         counts["retraces_refused"] += 1
-        return (f"the step goes back along the branch traced at lam = {points[j].lam:.9g} "
-                f"(points {j}-{j + 1} of this branch)")
+        return f"{RETRACE} traced at lam = {points[j].lam:.9g} (points {j}-{j + 1} of this branch)"
 
     def sign_at(z, d):
         """The orientation at z (0 where the bordered matrix is singular) and the Jacobian there."""
@@ -707,7 +709,7 @@ def continue_branch(fun: Callable, x0: np.ndarray, lam0: float, lam_end: float, 
                         counts["corners_passed"] += not changed
             if failure is not None and opts.kink_lam_steps and ds <= opts.corner_ds:
                 out = across(t, ds)
-                if out is None and failure.startswith("the step goes back"):
+                if out is None and failure.startswith(RETRACE):
                     # the branch's own tangent leads back along it: a step at fixed lam from the last
                     # point towards lam_end, onto the branch beyond the corner (if there is one)
                     e_lam = np.zeros(t.size)
