@@ -41,7 +41,6 @@ def machine() -> dict:
                 break
     except OSError:
         pass
-    import subprocess
     from importlib.metadata import PackageNotFoundError, version
 
     import numba
@@ -58,12 +57,17 @@ def machine() -> dict:
                 out[pkg] = __import__(pkg.replace("fenics-", "")).__version__
             except Exception:  # noqa: BLE001 - a version we cannot read is recorded as such
                 out[pkg] = "not installed"
-    try:
-        out["jointfem commit"] = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True,
-                                                text=True, check=True).stdout.strip()
-    except (OSError, subprocess.CalledProcessError):
-        out["jointfem commit"] = "unknown"
+    out["jointfem commit"] = _commit()
     return out
+
+
+def _commit() -> str:
+    """HEAD's short hash ("unknown" without git)."""
+    try:
+        return subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True, text=True,
+                              check=True).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown"
 
 
 def _memory() -> str:
@@ -477,9 +481,7 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     command = "make bench" if os.environ.get("MAKELEVEL") else "python benchmarks/bench.py"
     if args.aft_only:
-        commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True,
-                                text=True).stdout.strip()
-        print(f"AFT with exact Jacobian, 1,000 3D pairs, N = 256, H = 5, median of {args.repeats}, commit {commit}"
+        print(f"AFT with exact Jacobian, 1,000 3D pairs, N = 256, H = 5, median of {args.repeats}, commit {_commit()}"
               f"{' + changes' if _dirty() else ''}")
         for label, r in bench_aft(args.repeats).items():
             share = " / ".join(f"{x:.2f}" for x in r["stick_slip_sep_share"])
