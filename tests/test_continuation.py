@@ -232,3 +232,58 @@ def test_retrace_rule_tells_a_step_back_from_folds_and_corners():
     nxt = th[-1] + np.deg2rad(8.0)
     assert _retraced(fold, np.ones(1), 1.0, np.array([np.sin(th[-1]), np.cos(th[-1])]),
                      np.array([np.sin(nxt), np.cos(nxt)]), 0.1) is None
+
+
+def line(x, lam):
+    """R = x - lam: the branch x = lam."""
+    return np.atleast_1d(x) - lam, np.eye(1), -np.ones(1)
+
+
+def test_a_resumed_branch_is_not_walked_back_along_its_points_before_the_stop():
+    """The retrace rule sees the points a resumed branch had before it stopped (``traced``): a sweep
+    that went down x = lam from 1 to 0.5, resumed heading up (as a tangent that reverses at a kink
+    does), would walk back along them, and is stopped saying so; without them it walks back up
+    unhindered (what let the 3D lap joint's resumed penalty sweep at 5 N step back once, issue 14)."""
+    before = _polyline(np.column_stack([np.linspace(1.0, 0.52, 25)] * 2))
+    opts = ContinuationOptions(ds0=0.02, ds_max=0.02)
+    resume = ((np.array([1.0]), 1.0), 0.02)
+    with pytest.raises(ContinuationError, match=r"the step goes back along the branch traced at lam = 0.52 "
+                                                r"\(points 24-25 of this branch\)"):
+        continue_branch(line, np.array([0.5]), 0.5, 1.0, x_scale=1.0, lam_scale=1.0, r_scale=1.0, options=opts,
+                        resume=resume, traced=before)
+    pts = continue_branch(line, np.array([0.5]), 0.5, 1.0, x_scale=1.0, lam_scale=1.0, r_scale=1.0, options=opts,
+                          resume=resume)
+    assert pts[-1].lam >= 1.0
+
+
+class _Spy:
+    """An Adaptive problem that records where after_converge was asked (and never changes)."""
+    max_redo = 5
+
+    def __init__(self):
+        self.asked = []
+
+    def unknowns(self):
+        return None
+
+    def before_step(self, x, lam):
+        return False
+
+    def after_converge(self, x, lam):
+        self.asked.append(lam)
+        return False
+
+
+def test_a_point_refused_for_landing_far_never_changes_the_problem():
+    """A corrector that lands farther than max_jump steps is refused before the problem's
+    after_converge hook sees the point: an adaptive problem (the penalty ROM's active set) changed
+    for a point it then refuses need not have the last point as a solution any more (issue 14:
+    the 3D lap joint at 5 N stopped at 1720.01 rad/s that way).  With max_jump = 0.5 every step on
+    x = lam lands at least one step away and is refused: the hook is asked only at the start."""
+    spy = _Spy()
+    opts = ContinuationOptions(ds0=0.02, ds_max=0.02, max_jump=0.5, turn_ds_floor=1e-9, corner_steps=False,
+                               kink_lam_steps=False)
+    with pytest.raises(ContinuationError, match="corrector landed 1.0 step lengths away"):
+        continue_branch(line, np.array([0.0]), 0.0, 1.0, x_scale=1.0, lam_scale=1.0, r_scale=1.0, options=opts,
+                        adapt=spy)
+    assert spy.asked == [0.0]

@@ -167,7 +167,7 @@ def compute_force_response(model: Structure | Reduction, omega: float, harmonics
         points = continue_branch(newton_system(problem), x0, lam0, scale_end,
                                  x_scale=sc.x, lam_scale=scale_end - scale_start, r_scale=sc.r, options=cont,
                                  callback=callback, adapt=problem.adaptation, stats=steps, extra=record,
-                                 resume=heading)
+                                 resume=heading, traced=before)
     except ContinuationError as exc:
         if len(before) + len(exc.points) < 2:
             raise

@@ -159,7 +159,7 @@ def compute_frf(model: Structure | Reduction, options: SweepOptions, *,
         points = continue_branch(newton_system(problem), U0, omega0, options.omega_end,
                                  x_scale=scales.x, lam_scale=lam_scale, r_scale=scales.r, options=cont,
                                  callback=callback, extra=record, adapt=problem.adaptation, stats=steps,
-                                 resume=heading)
+                                 resume=heading, traced=before)
     except ContinuationError as exc:
         if len(before) + len(exc.points) < 2:
             raise

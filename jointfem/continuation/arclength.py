@@ -424,7 +424,8 @@ def continue_branch(fun: Callable, x0: np.ndarray, lam0: float, lam_end: float, 
                     callback: Callable[[ContinuationPoint], None] | None = None,
                     extra: Callable[[np.ndarray, float], object] | None = None,
                     adapt: Adaptive | None = None, stats: dict | None = None,
-                    resume: tuple[np.ndarray, float] | None = None) -> list[ContinuationPoint]:
+                    resume: tuple[np.ndarray, float] | None = None,
+                    traced: list[ContinuationPoint] = ()) -> list[ContinuationPoint]:
     """Follow R(x, lam) = 0 from (x0, lam0) until lam passes lam_end (either direction).
 
     fun(x, lam) -> (R, dR/dx, dR/dlam).  x0 is an initial guess at lam0 (refined by Newton).
@@ -435,7 +436,8 @@ def continue_branch(fun: Callable, x0: np.ndarray, lam0: float, lam_end: float, 
     ``resume``: (direction, ds) to continue a branch that stopped at (x0, lam0): the direction
     (dx, dlam) it was heading in there (the secant of its last step will do: it orients the
     tangent) and the step it would have taken (ContinuationPoint.ds_next), so that the branch goes
-    on as if it had not stopped.
+    on as if it had not stopped.  ``traced``: the points of that branch before (x0, lam0), which
+    the retrace rule (ContinuationOptions.retrace_tol) sees as part of the branch.
     """
     opts = options
     x_scale = np.broadcast_to(np.asarray(x_scale, float), np.shape(x0)).copy()
@@ -512,6 +514,14 @@ def continue_branch(fun: Callable, x0: np.ndarray, lam0: float, lam_end: float, 
             nopts = replace(nopts, kink_tol=max(opts.newton.kink_tol, opts.newton.relaxed_kink_tol))
         try:
             y_new, mu_new, it, res = _corrector(g, z_p[:-1], z_p[-1], d, nopts, lam_scale)
+            jump = float(np.linalg.norm(np.append(y_new - y, mu_new - mu)))
+            if jump > opts.max_jump * ds and ds > opts.turn_ds_floor:
+                # the hyperplane met the branch far from the predictor: another part of it, refused
+                # before the problem may adapt to it (an adaptive problem changed by a point it then
+                # refuses need not have the last point as a solution: the penalty ROM's active set
+                # grown at such a point left the 3D lap joint at 5 N unable to step on, issue 14)
+                return (None, None, it, res, None, None, False,
+                        f"corrector landed {jump / ds:.1f} step lengths away")
             changed = adapt is not None and adapt.after_converge(space.full(y_new), mu_new * lam_scale)
             if changed:
                 # the problem changed: the tangent at the last accepted point, then the same step again
@@ -532,11 +542,7 @@ def continue_branch(fun: Callable, x0: np.ndarray, lam0: float, lam_end: float, 
         # tangent however short the step; only steps longer than turn_ds_floor are refused.
         failure = None
         cos_turn = float(t_new @ d)
-        jump = float(np.linalg.norm(np.append(y_new - y, mu_new - mu)))
-        if jump > opts.max_jump * ds and ds > opts.turn_ds_floor:
-            # the hyperplane met the branch far from the predictor: another part of it
-            failure = f"corrector landed {jump / ds:.1f} step lengths away"
-        elif orient_new != orient and ds > opts.turn_ds_floor:
+        if orient_new != orient and ds > opts.turn_ds_floor:
             # the corrector met another branch (or passed a bifurcation point): never silently
             failure = "the orientation of the branch (sign of the bordered Jacobian) changed"
         elif cos_turn < cos_max and ds > opts.turn_ds_floor and not (
@@ -564,12 +570,13 @@ def continue_branch(fun: Callable, x0: np.ndarray, lam0: float, lam_end: float, 
         if opts.retrace_tol is None:
             return None
         z_new = np.append(space.full(y_new) / x_scale, mu_new)
-        j = _retraced(points, x_scale, lam_scale, np.append(points[-1].x / x_scale, points[-1].lam / lam_scale),
+        branch = list(traced) + points
+        j = _retraced(branch, x_scale, lam_scale, np.append(points[-1].x / x_scale, points[-1].lam / lam_scale),
                       z_new, opts.retrace_tol)
         if j is None:
             return None
         counts["retraces_refused"] += 1
-        return f"{RETRACE} traced at lam = {points[j].lam:.9g} (points {j}-{j + 1} of this branch)"
+        return f"{RETRACE} traced at lam = {branch[j].lam:.9g} (points {j}-{j + 1} of this branch)"
 
     def sign_at(z, d):
         """The orientation at z (0 where the bordered matrix is singular) and the Jacobian there."""
@@ -655,14 +662,14 @@ def continue_branch(fun: Callable, x0: np.ndarray, lam0: float, lam_end: float, 
             y_new, it, res = _damped_newton(F, z_p[:-1].copy(), nopts, "corrector at fixed lam",
                                             lambda _: z_p[-1] * lam_scale)
             mu_new = z_p[-1]
+            sec = np.append(y_new, mu_new) - z0
+            jump = float(np.linalg.norm(sec))
+            if jump > opts.max_jump * ds * (1.0 / max(abs(t[-1]), 1e-2) if march else 1.0):
+                return None  # (before the problem may adapt to the point, as in attempt())
             changed = adapt is not None and adapt.after_converge(space.full(y_new), mu_new * lam_scale)
             if changed:
                 return y_new, mu_new, it, res, None, None, True, None
             R, J, dl = g(y_new, mu_new)
-            sec = np.append(y_new, mu_new) - z0
-            jump = float(np.linalg.norm(sec))
-            if jump > opts.max_jump * ds * (1.0 / max(abs(t[-1]), 1e-2) if march else 1.0):
-                return None
             t_new, orient_new = _tangent(J, dl, sec / max(jump, 1e-300))
         except (ConvergenceError, np.linalg.LinAlgError, RuntimeError):
             return None
