@@ -5,16 +5,21 @@
 
 Stages: mesh (gmsh + distribution), assembly (dolfinx), gather (canonical scipy on every
 rank, areas, normals), contact pairs, 20 modes (SLEPc shift-invert, MUMPS), static modes
-(MUMPS, one per contact component).  Rank 0 writes the JSON.  bench.py runs it serial and on
-2 ranks and records the speed-up per stage.
+(MUMPS, one per contact component), projection (the penalty ROM's reduced K_lin and M on
+[modes, static modes], as rom.penalty forms them).  Per stage also the peak resident memory of the
+largest rank so far (getrusage ru_maxrss).  Rank 0 writes the JSON.  bench.py runs it serial and on
+2 ranks and records the speed-up per stage; scaling.py runs it over mesh sizes and pair counts.
 """
 from __future__ import annotations
 
 import argparse
 import json
+import resource
 import sys
 import time
 from pathlib import Path
+
+import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
@@ -23,6 +28,8 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--size", type=float, default=0.004, help="element size along x and z, m")
     ap.add_argument("--size-normal", type=float, default=0.003)
+    ap.add_argument("--size-joint", type=float, default=None,
+                    help="element size over the joint along x and along z, m (sets the pair count; default --size)")
     ap.add_argument("--modes", type=int, default=20)
     ap.add_argument("--json", required=True)
     args = ap.parse_args(argv)
@@ -33,25 +40,36 @@ def main(argv=None):
 
     comm = MPI.COMM_WORLD
     spec = ContinuumSpec(geometry="lap", dim=3, size=args.size, size_normal=args.size_normal, degree=2,
-                         kt_total=3e4, kn=2e11, pressure=8e4)
-    comm.Barrier()
-    t0 = time.perf_counter()
+                         size_joint=args.size_joint, kt_total=3e4, kn=2e11, pressure=8e4)
+    peak = {}
+
+    def mark(stage):  # the largest rank's peak resident memory so far, GB (ru_maxrss is in kB on Linux)
+        comm.Barrier()
+        peak[stage] = max(comm.allgather(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)) / 1e6
+        return time.perf_counter()
+
+    t0 = mark("start")
     s = create_continuum(spec, comm)
-    comm.Barrier()
-    t1 = time.perf_counter()
-    linalg.eigen(s.K_lin, s.M, args.modes)
-    comm.Barrier()
-    t2 = time.perf_counter()
+    t1 = mark("model_total")
+    Kl = s.K_lin
+    _, Phi = linalg.eigen(Kl, s.M, args.modes)
+    t2 = mark("eigen")
     G = s.contacts[0].gap
-    linalg.Factorized(s.K_lin).solve(G.T.toarray())
-    comm.Barrier()
-    t3 = time.perf_counter()
+    Psi = linalg.Factorized(Kl).solve(G.T.toarray())
+    t3 = mark("static")
+    T = np.hstack([Phi, Psi])
+    del Psi
+    Kr, Mr = T.T @ (Kl @ T), T.T @ (s.M @ T)
+    t4 = mark("projection")
     if comm.rank == 0:
         tm = s.info["timings"]
         out = {"ranks": comm.size, "dofs": s.num_dofs, "pairs": s.num_pairs, "backend": linalg.backend(s.num_dofs),
+               "size": args.size, "size_normal": args.size_normal, "size_joint": args.size_joint,
+               "reduced": int(Kr.shape[0]), "finite": bool(np.isfinite(Kr).all() and np.isfinite(Mr).all()),
                "stages_s": {"mesh": tm["mesh_s"], "assembly": tm["assembly_s"], "gather": tm["gather_s"],
                             "contact": tm["contact_s"], "model_total": t1 - t0, f"eigen_{args.modes}_modes": t2 - t1,
-                            f"static_{G.shape[0]}_solves": t3 - t2, "offline_total": t3 - t0}}
+                            f"static_{G.shape[0]}_solves": t3 - t2, "projection": t4 - t3, "offline_total": t4 - t0},
+               "peak_gb_per_rank": peak}
         Path(args.json).write_text(json.dumps(out, indent=1))
 
 
