@@ -2,7 +2,7 @@
 PY := .venv/bin/python
 MPIRUN := mpirun $(if $(filter 0,$(shell id -u)),--allow-run-as-root) --oversubscribe
 
-.PHONY: setup demo test test-trixie test-fast bench bench-corners bench-harmonics bench-friction bench-friction-fine bench-exact bench-stability bench-nma bench-preload brb paper validate clean
+.PHONY: setup demo test test-trixie test-fast bench bench-corners bench-scaling bench-harmonics bench-friction bench-friction-fine bench-exact bench-stability bench-nma bench-preload brb paper validate clean
 
 setup:
 	@bash tools/setup.sh
@@ -34,6 +34,11 @@ brb: setup
 # issue 14's sweeps at strong separation, each under a time budget (about 30 min on 2 cores)
 bench-corners: setup
 	$(PY) benchmarks/corners.py --out docs/benchmarks_corners.md --jobs 2 --skip-before
+
+# issue 17's scaling laws: the offline stages against DOFs and pairs, 1 and 2 MPI ranks, and a model
+# of 500k DOFs (docs/benchmarks_scaling.md, docs/img/scaling.png; docs/scaling.md reads them)
+bench-scaling: setup
+	$(PY) benchmarks/scaling.py --out docs/benchmarks_scaling.md
 
 # issue 14's harmonic convergence: the beam at 3 N, exact condensation with the event-accurate AFT,
 # H = 3 to 41 (docs/benchmarks_harmonics.md)

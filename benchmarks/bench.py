@@ -295,6 +295,30 @@ def _rom_table(t: dict) -> list[str]:
     return lines
 
 
+# the benchmarks with a file and a make target of their own (listed in docs/benchmarks.md)
+OTHER = [
+    ("docs/benchmarks_corners.md", "make bench-corners", "the sweeps at strong separation of issue 14 (lap3d at 3 and "
+     "5 N, penalty ROM and exact; lap2d full order; the beam at H = 5 to 15, N up to 4096): status, points, "
+     "refused steps, time, largest accepted residual, located peak"),
+    ("docs/benchmarks_offline.md", "make bench", "the offline stages of a 114k-DOF lap joint, 1 against 2 MPI ranks"),
+    ("docs/benchmarks_scaling.md", "make bench-scaling", "the offline stages against DOFs and pairs, 1 and 2 ranks, "
+     "fitted slopes and peak memory (docs/scaling.md reads them)"),
+    ("docs/benchmarks_harmonics.md", "make bench-harmonics", "the beam at 3 N against the number of harmonics, H = 3 to 41"),
+    ("docs/benchmarks_stability.md", "make bench-stability", "the beam's stability at a converged H, against time integration"),
+    ("docs/benchmarks_peaks.md", "python benchmarks/peaks_cost.py", "the cost of located peaks and of stability"),
+    ("docs/benchmarks_exact.md", "make bench-exact", "the exact condensation: sparse LU per harmonic and omega against one eigendecomposition"),
+    ("docs/benchmarks_friction.md", "make bench-friction", "speed against accuracy where friction dominates"),
+    ("docs/benchmarks_nma.md", "make bench-nma", "nonlinear modes (EPMC): validation and speed against accuracy; also part of make bench"),
+    ("docs/benchmarks_preload.md", "make bench-preload", "the static preload: mesh convergence of the bolted lap joint and the Brake-Reuss beam"),
+]
+
+
+def other_benchmarks() -> list[str]:
+    """The section of docs/benchmarks.md that lists the benchmarks with files of their own."""
+    return ["## Other benchmarks", "", "Each has its own file and command (not rerun by `make bench` unless said):", ""] + [
+        f"- [{path}]({Path(path).name}) (`{cmd}`): {what}." for path, cmd, what in OTHER] + [""]
+
+
 def write_markdown(path: Path, m: dict, aft: dict, sdof: dict, beam: dict, command: str, roms: dict, lap: dict,
                    conv: dict, peer: list | None, wall: float):
     lines = ["# Benchmarks", "",
@@ -306,7 +330,8 @@ def write_markdown(path: Path, m: dict, aft: dict, sdof: dict, beam: dict, comma
              "runs of make bench on 2026-11-30, so read times to about +-25 % and compare within one run.",
              "", "## Machine and software", "", "| item | value |", "|---|---|"]
     lines += [f"| {k} | {v} |" for k, v in m.items()]
-    lines += ["", "## AFT with exact Jacobian: 1,000 3D pairs (2 tangential + normal), N = 256, H = 5", "",
+    lines += [""] + other_benchmarks()
+    lines += ["## AFT with exact Jacobian: 1,000 3D pairs (2 tangential + normal), N = 256, H = 5", "",
               "| case | stick / slip / separated share | residual only [ms] | with Jacobian [ms] | goal |",
               "|---|---|---|---|---|"]
     for label, r in aft.items():
