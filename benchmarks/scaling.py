@@ -7,8 +7,8 @@ about 500k DOFs, for the peak memory.
 
 Each point is one run of benchmarks/offline_stages.py (serial, then under mpirun -n 2), in its own
 process, killed past ``--budget`` seconds (the row then says so).  Writes the Markdown table, a JSON
-of every run next to it, and a log-log PNG (docs/img/scaling.png).  docs/scaling.md reads these
-slopes to say what a larger run would cost.
+of every run next to it, and a log-log PNG (docs/img/scaling.png): the slopes from which to say
+what a larger run would cost.
 """
 from __future__ import annotations
 

@@ -68,6 +68,21 @@ def _to_petsc(A):
     return M
 
 
+def allgather_rows(comm, a: np.ndarray) -> np.ndarray:
+    """The concatenation over the ranks of ``comm`` (mpi4py) of each rank's array along axis 0, on
+    every rank, by buffer (Allgatherv), not by pickle."""
+    a = np.ascontiguousarray(a)
+    if comm.size == 1:
+        return a.copy()
+    rows = np.array(comm.allgather(a.shape[0]))
+    per_row = int(np.prod(a.shape[1:], dtype=np.int64))
+    out = np.empty((rows.sum(),) + a.shape[1:], dtype=a.dtype)
+    from mpi4py import MPI
+
+    comm.Allgatherv(a, [out, rows * per_row, None, MPI._typedict[a.dtype.char]])
+    return out
+
+
 def _gather_vec(v) -> np.ndarray:
     """The whole of a distributed PETSc vector, on every rank."""
     from petsc4py import PETSc
@@ -315,7 +330,7 @@ class _MumpsFactorized(Factorized):
         Xp.destroy()
         if comm.getSize() == 1:
             return local
-        return np.vstack(comm.tompi4py().allgather(local))
+        return allgather_rows(comm.tompi4py(), local)  # by buffer, not pickled
 
 
 class _MumpsComplex(Factorized):

@@ -30,6 +30,7 @@ import scipy.sparse as sp
 
 from ..contact.jenkins import JenkinsPairs
 from ..linalg import LinAlgError
+from ..linalg import allgather_rows as _allgather
 from ..models.structure import ContactGroup, Structure
 from . import compat
 from . import geometry as geo
@@ -332,21 +333,6 @@ def _substructure_of_blocks(space, cell_tags) -> np.ndarray:
     sub = np.zeros(imap.size_local + imap.num_ghosts, dtype=np.int8)
     sub[compat.cell_blocks(space, cell_tags.find(geo.CELL_B))] = 1
     return sub
-
-
-def _allgather(comm, a: np.ndarray) -> np.ndarray:
-    """Concatenation over ranks of a numpy array (along axis 0), by buffer, not by pickle."""
-    a = np.ascontiguousarray(a)
-    if comm.size == 1:
-        return a.copy()
-    rows = np.array(comm.allgather(a.shape[0]))
-    per_row = int(np.prod(a.shape[1:], dtype=np.int64))
-    out = np.empty((rows.sum(),) + a.shape[1:], dtype=a.dtype)
-    from mpi4py import MPI
-
-    mpitype = MPI._typedict[a.dtype.char]
-    comm.Allgatherv(a, [out, rows * per_row, None, mpitype])
-    return out
 
 
 def _match_rows(ref: np.ndarray, query: np.ndarray) -> np.ndarray:
