@@ -20,7 +20,9 @@ import datetime
 import json
 import multiprocessing as mp
 import platform
+import signal
 import subprocess
+import sys
 import tempfile
 import time
 import tomllib
@@ -147,6 +149,9 @@ def main():
     cases = [c for c in CASES if not args.quick or c[0] in QUICK]
     work = [(c, "now") for c in cases] + ([] if args.skip_before else [(c, "before") for c in cases])
     t0 = time.time()
+    # a SIGTERM (kill, pkill) leaves the pool's context, which terminates its workers: without this
+    # they ran on as orphans after their parent was killed
+    signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))
     with mp.get_context("spawn").Pool(args.jobs) as pool:
         rows = []
         # the longest budgets first, so that no long sweep starts last (the table keeps CASES' order);
