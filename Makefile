@@ -36,7 +36,7 @@ bench-corners: setup
 	$(PY) benchmarks/corners.py --out docs/benchmarks_corners.md --jobs 2 --skip-before
 
 # issue 17's scaling laws: the offline stages against DOFs and pairs, 1 and 2 MPI ranks, and a model
-# of 500k DOFs (docs/benchmarks_scaling.md, docs/img/scaling.png; not yet run: about 30 min on 2 cores, estimated)
+# of 500k DOFs (docs/benchmarks_scaling.md, docs/img/scaling.png; docs/scaling.md reads them; 16 min)
 bench-scaling: setup
 	$(PY) benchmarks/scaling.py --out docs/benchmarks_scaling.md
 

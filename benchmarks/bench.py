@@ -301,6 +301,8 @@ OTHER = [
      "5 N, penalty ROM and exact; lap2d full order; the beam at H = 5 to 15, N up to 4096): status, points, "
      "refused steps, time, largest accepted residual, located peak"),
     ("docs/benchmarks_offline.md", "make bench", "the offline stages of a 114k-DOF lap joint, 1 against 2 MPI ranks"),
+    ("docs/benchmarks_scaling.md", "make bench-scaling", "the offline stages against DOFs and pairs, 1 and 2 ranks, "
+     "fitted slopes and peak memory per rank, a 500k-DOF model (docs/scaling.md reads them)"),
     ("docs/benchmarks_harmonics.md", "make bench-harmonics", "the beam at 3 N against the number of harmonics, H = 3 to 41"),
     ("docs/benchmarks_stability.md", "make bench-stability", "the beam's stability at a converged H, against time integration"),
     ("docs/benchmarks_peaks.md", "python benchmarks/peaks_cost.py", "the cost of located peaks and of stability"),

@@ -51,12 +51,18 @@ def run_one(case, ranks: int, budget: float) -> dict:
         except subprocess.TimeoutExpired:
             return {"series": series, "ranks": ranks, "case": list(case[1:]), "status": f"over the budget of {budget:g} s"}
         if r.returncode != 0 or not out.exists():
-            tail = (r.stdout + r.stderr).strip().splitlines()[-3:]
-            return {"series": series, "ranks": ranks, "case": list(case[1:]),
-                    "status": f"failed (exit {r.returncode}): {' | '.join(tail)}"}
+            return {"series": series, "ranks": ranks, "case": list(case[1:]), "status": failure(r.returncode, r.stdout + r.stderr)}
         res = json.loads(out.read_text())
     res.update(series=series, case=list(case[1:]), status="done", wall_s=time.perf_counter() - t0)
     return res
+
+
+def failure(code: int, output: str) -> str:
+    """One line (no table separators) for a run that failed."""
+    if code in (137, -9) or "signal 9" in output:
+        return "killed by signal 9 (exit 137): out of memory, if the kernel log names its OOM killer"
+    tail = " / ".join(ln.strip() for ln in output.strip().splitlines()[-3:] if ln.strip("- "))
+    return f"failed (exit {code}): {tail.replace('|', '/')}"
 
 
 def stage_names(runs):
@@ -166,6 +172,7 @@ def main(argv=None) -> int:
     ap.add_argument("--budget", type=float, default=1200.0, help="seconds per run before it is stopped")
     ap.add_argument("--ranks", default="1,2")
     args = ap.parse_args(argv)
+    out = Path(args.out)
     cases = QUICK if args.quick else DOFS + PAIRS + BIG
     runs = []
     try:
@@ -181,7 +188,6 @@ def main(argv=None) -> int:
             bar.set_postfix_str(f"{runs[-1].get('dofs', '?')} DOFs, {ranks} rank(s): {runs[-1]['status']}")
     if bar:
         bar.close()
-    out = Path(args.out)
     out.with_suffix(".json").write_text(json.dumps(runs, indent=1))
     fitted = fits(runs)
     plot(runs, out.parent / "img" / "scaling.png")
