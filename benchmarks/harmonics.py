@@ -24,7 +24,9 @@ import datetime
 import json
 import multiprocessing as mp
 import platform
+import signal
 import subprocess
+import sys
 import time
 from dataclasses import replace
 from pathlib import Path
@@ -159,6 +161,7 @@ def main():
     work = QUICK if args.quick else SERIES + CHECKS
     t0 = time.time()
     rows = []
+    signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))  # (so that a kill also ends the pool's workers)
     with mp.get_context("spawn").Pool(args.jobs) as pool:
         for row in pool.imap_unordered(run, sorted(work, key=lambda c: -c[1])):  # the long ones first
             rows.append(row)
