@@ -450,6 +450,11 @@ def peer_notes(rows: list[dict]) -> str:
   the system numpy 1.24 with Debian's OpenBLAS, so raw dense-algebra speed may differ too."""
 
 
+def mpirun(ranks: int) -> list[str]:
+    """The command prefix that runs a program on ``ranks`` MPI ranks on this machine (as root too)."""
+    return ["mpirun", "--oversubscribe", "-n", str(ranks)] + (["--allow-run-as-root"] if os.geteuid() == 0 else [])
+
+
 def bench_offline(path: Path, size: float = 0.003, command: str = "python benchmarks/bench.py --offline-only") -> None:
     """Offline stages of the 3D lap joint (>= 100k DOFs), serial and on 2 MPI ranks, in one run -> ``path``."""
     import json
@@ -457,12 +462,9 @@ def bench_offline(path: Path, size: float = 0.003, command: str = "python benchm
     import tempfile
 
     script = ROOT / "benchmarks" / "offline_stages.py"
-    mpirun = ["mpirun", "--oversubscribe", "-n", "2"]
-    if os.geteuid() == 0:
-        mpirun.insert(1, "--allow-run-as-root")
     res = {}
     with tempfile.TemporaryDirectory() as tmp:
-        for ranks, prefix in ((1, []), (2, mpirun)):
+        for ranks, prefix in ((1, []), (2, mpirun(2))):
             out = Path(tmp) / f"r{ranks}.json"
             r = subprocess.run(prefix + [sys.executable, str(script), "--size", str(size), "--json", str(out)],
                                cwd=ROOT, capture_output=True, text=True)

@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import subprocess
 import sys
 import tempfile
@@ -42,7 +41,9 @@ def run_one(case, ranks: int, budget: float) -> dict:
     cmd = [sys.executable, str(ROOT / "benchmarks" / "offline_stages.py"), "--size", str(size), "--size-normal",
            str(hn), "--size-joint", str(hj)]
     if ranks > 1:
-        cmd = ["mpirun", "--oversubscribe", "-n", str(ranks)] + (["--allow-run-as-root"] if os.geteuid() == 0 else []) + cmd
+        from bench import mpirun
+
+        cmd = mpirun(ranks) + cmd
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "r.json"
         t0 = time.perf_counter()
@@ -65,9 +66,8 @@ def failure(code: int, output: str) -> str:
     return f"failed (exit {code}): {tail.replace('|', '/')}"
 
 
-def stage_names(runs):
-    """The stages of the runs (the static one's name carries its column count: normalised)."""
-    return ["mesh", "assembly", "gather", "contact", "eigen", "static", "projection", "offline_total"]
+# the stages of offline_stages.py (in its JSON the eigen and static ones carry their counts: stage_time)
+STAGES = ["mesh", "assembly", "gather", "contact", "eigen", "static", "projection", "offline_total"]
 
 
 def stage_time(run, stage):
@@ -95,7 +95,7 @@ def fits(runs):
             if len(rs) < 2:
                 continue
             x = [r[var] for r in rs]
-            f = {st: slope(x, [stage_time(r, st) or 0.0 for r in rs]) for st in stage_names(rs)}
+            f = {st: slope(x, [stage_time(r, st) or 0.0 for r in rs]) for st in STAGES}
             f["peak_gb"] = slope(x, [max(r["peak_gb_per_rank"].values()) for r in rs])
             out[(series, ranks)] = f
     return out
@@ -118,7 +118,8 @@ def plot(runs, path: Path):
             x = [r[var] for r in rs]
             if what == "memory":
                 y = [max(r["peak_gb_per_rank"].values()) for r in rs]
-                ax.loglog(x, y, "o" + ls, label=f"{ranks} rank(s), slope {slope(x, y) or float('nan'):.2f}")
+                s = slope(x, y)
+                ax.loglog(x, y, "o" + ls, label=f"{ranks} rank(s), slope {float('nan') if s is None else s:.2f}")
                 continue
             for st, c in (("assembly", "C0"), ("eigen", "C1"), ("static", "C2"), ("projection", "C3"),
                           ("offline_total", "k")):
@@ -152,15 +153,15 @@ def table(runs, fitted, command: str) -> str:
         if r["status"] != "done":
             lines.append(f"| {r['series']} | {r['ranks']} | | | | | | | | | | | | {r['status']} (sizes {r['case']}) |")
             continue
-        t = [stage_time(r, st) for st in stage_names(runs)]
+        t = [stage_time(r, st) for st in STAGES]
         lines.append(f"| {r['series']} | {r['ranks']} | {r['dofs']} | {r['pairs']} | "
                      + " | ".join(f"{v:.2f}" for v in t) + f" | {max(r['peak_gb_per_rank'].values()):.2f} | done |")
     lines += ["", "Fitted log-log slopes (time or peak memory ~ DOFs^a in the DOF series, ~ pairs^a in the pair "
               "series; the pair series also changes the DOFs a little):", "",
-              "| series | ranks | " + " | ".join(stage_names(runs)) + " | peak memory |", "|" + "---|" * 11]
+              "| series | ranks | " + " | ".join(STAGES) + " | peak memory |", "|" + "---|" * 11]
     for (series, ranks), f in fitted.items():
         lines.append(f"| {series} | {ranks} | " + " | ".join("" if f[st] is None else f"{f[st]:.2f}"
-                                                           for st in stage_names(runs) + ["peak_gb"]) + " |")
+                                                           for st in STAGES + ["peak_gb"]) + " |")
     lines += ["", "![scaling](img/scaling.png)", ""]
     return "\n".join(lines)
 
