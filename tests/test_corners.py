@@ -161,7 +161,7 @@ def lap_scene(name, force, N, **sets):
 
 # The 3D lap joint at 3 N on a coarse setting that fits make test: a 30 mm mesh (9 pairs), H = 3,
 # N = 256, both round the separated loop that stalled lap3d before issue 14 (measured: 1747 and 1635
-# points, about 60 s each).  The full list, on the demos' meshes and at 5 N, and lap2d, is
+# points; 65 s for both in a test run).  The full list, on the demos' meshes and at 5 N, and lap2d, is
 # benchmarks/corners.py.  At N = 128 these sweeps (and lap2d's and lap3d's at 5 N) still stall at a
 # kink near 1500-1550 rad/s, the corrector cycling at a residual of 1e-6 (docs/theory.md, Known limits).
 LAPS = [("lap3d", 3.0, "penalty", {"mesh__size": 0.03}), ("lap3d", 3.0, "exact", {"mesh__size": 0.03})]
