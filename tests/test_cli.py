@@ -163,7 +163,8 @@ def test_a_complete_sweep_says_so(tmp_path):
     assert r.returncode == 0, r.stderr
     s = json.loads((out / "summary.json").read_text())
     assert s["status"] == "complete" and "stop_reason" not in s
-    assert set(s["continuation"]) == {"refused_steps", "corners_passed", "kinks_crossed", "redone_steps", "retraces_refused"}
+    assert set(s["continuation"]) == {"refused_steps", "corners_passed", "sharp_corners", "kinks_crossed", "redone_steps",
+                                      "retraces_refused"}
 
 
 def test_a_range_without_its_resonance_says_no_peak(tmp_path):

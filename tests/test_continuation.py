@@ -69,6 +69,38 @@ def test_passes_a_fold_on_a_corner():
     assert lam.min() < 0.1  # the turn was taken near the corner (not skipped by a long step)
 
 
+def sharp(x, lam, k=np.tan(np.deg2rad(84.0))):
+    """R = k |x| - lam: a fold on a kink whose legs are 12 deg apart, so that the branch turns by
+    168 deg there (the 9-pair 3D lap joint at N = 128 folds so at 1546.05 rad/s, issue 14)."""
+    x = np.atleast_1d(x)
+    return k * np.abs(x) - lam, np.diag(k * (np.sign(x) + (x == 0))), -np.ones(1)
+
+
+@pytest.mark.parametrize("sharp_ok", [True, False])
+def test_a_corner_sharper_than_the_reversal_guard_is_the_last_resort(sharp_ok):
+    """The piece beyond the corner turns back by more than 180 - max_reversal_deg = 150 deg, and no
+    step at fixed lam passes (there is no solution below lam = 0).  It is then taken, since the
+    retrace rule tells it from the way the branch came (its legs part at sin(12 deg) = 0.21 of the
+    step, twice retrace_tol); without the retrace rule it is not, and the sweep stops at the corner
+    as it did before (below ds_min)."""
+    k = np.tan(np.deg2rad(84.0))
+    opts = ContinuationOptions(ds0=0.02, ds_max=0.02, max_points=2000, lam_bounds=(-1.0, 2 * k),
+                               retrace_tol=0.1 if sharp_ok else None)
+    with pytest.raises(ContinuationError) as err:
+        continue_branch(sharp, np.array([-1.0]), k, -1.0, x_scale=1.0, lam_scale=1.0, r_scale=1.0, options=opts,
+                        stats=(stats := {}))
+    pts = err.value.points
+    x = np.array([p.x[0] for p in pts])
+    lam = np.array([p.lam for p in pts])
+    np.testing.assert_allclose(k * np.abs(x), lam, atol=1e-12)  # every point on the branch
+    if sharp_ok:
+        assert "left [-1" in str(err.value)  # up the far leg to lam = 2k: through the corner
+        assert np.all(np.diff(x) > 0) and x[-1] > 1.8 and np.abs(x).min() < 1e-4
+        assert stats["sharp_corners"] == 1
+    else:
+        assert "ds_min" in str(err.value) and abs(x[-1]) < 1e-4
+
+
 def test_without_corner_steps_stops_clearly_at_the_corner():
     """With corner steps off the step shrinks to ds_min at the corner and a ContinuationError says
     where, and carries the points converged before it."""

@@ -102,7 +102,9 @@ class ContinuationOptions:
     ds_max: float = 0.1
     grow: float = 1.5
     target_iter: int = 4  # grow the step if the corrector needed at most this many iterations
-    max_points: int = 5000
+    # a guard on memory more than on time (time_limit is the budget): 20000 points hold every sweep of
+    # issue 14's list (the beam at H = 15, N = 4096: 13308 points)
+    max_points: int = 20000
     max_turn_deg: float = 45.0
     turn_ds_floor: float = 1e-4  # steps shorter than this are not refused for turning
     target_turn_deg: float = 8.0  # the step shrinks when the tangent turns more than this
@@ -337,8 +339,9 @@ def _retraced(points: list, x_scale: np.ndarray, lam_scale: float, z_last: np.nd
     z = (x / x_scale, lam / lam_scale) over every coefficient, solved now or not (an adaptive problem's
     unknowns change along the branch, its coefficients do not).  A branch never comes back onto
     itself: a smooth fold's two legs part at the rate they are walked, and a corner's (a fold on a
-    kink, turning by at most 180 - max_reversal_deg) at half that rate or more, so a tolerance of a
-    tenth of the step tells them from a retrace, whose points lie on the old polyline to its chords'
+    kink, turning by at most 180 - max_reversal_deg) at half that rate or more (a sharp corner's, the
+    last resort, at sin(180 deg - turn): 0.21 at 168 deg), so a tolerance of a tenth of the step tells
+    them from a retrace, whose points lie on the old polyline to its chords'
     error (1e-6 to 1e-5 of the scales against steps of 1e-4 to 1e-3 on the 3D lap joint)."""
     n = len(points)
     step = z_new - z_last
@@ -494,7 +497,8 @@ def continue_branch(fun: Callable, x0: np.ndarray, lam0: float, lam_end: float, 
     cos_rev = -np.cos(np.deg2rad(opts.max_reversal_deg))
     redo = 0
     counts = stats if stats is not None else {}
-    counts.update(refused_steps=0, corners_passed=0, kinks_crossed=0, redone_steps=0, retraces_refused=0)
+    counts.update(refused_steps=0, corners_passed=0, sharp_corners=0, kinks_crossed=0, redone_steps=0,
+                  retraces_refused=0)
 
     def stop(why: str):
         return ContinuationError(f"continuation stopped at lam = {mu * lam_scale:.9g} before reaching "
@@ -590,7 +594,8 @@ def continue_branch(fun: Callable, x0: np.ndarray, lam0: float, lam_end: float, 
         point and the predictor, and the hyperplane normal to d never meets the branch beyond (it
         turns back).  The first flip is located by bisection to ds / 2^corner_bisections, and
         (base, t2) returned: the point just past it and the tangent of the piece there, oriented to
-        keep the orientation of the branch.  None when the orientation does not flip."""
+        keep the orientation of the branch.  None when the orientation does not flip.  (t2 may turn
+        back by more than 180 - max_reversal_deg: the caller decides whether to take such a corner.)"""
         z0 = np.append(y, mu)
         try:
             o, J, dl = sign_at(z0 + ds * d, d)
@@ -624,8 +629,6 @@ def continue_branch(fun: Callable, x0: np.ndarray, lam0: float, lam_end: float, 
             return None
         if o2 != orient:
             t2 = -t2
-        if float(t2 @ d) < cos_rev:
-            return None
         return z0 + hi * d, t2
 
     def across(d, ds, march=False):
@@ -701,10 +704,13 @@ def continue_branch(fun: Callable, x0: np.ndarray, lam0: float, lam_end: float, 
                 t, orient = _tangent(J, dl, t)  # (the orientation of the system it is now)
             d = t
             y_new, mu_new, it, res, t_new, orient_new, changed, failure = attempt(d, ds)
+            sharp = None  # a corner beyond the reversal guard, kept for when nothing else passes
             if failure is not None and opts.corner_steps and ds <= opts.corner_ds:
                 # a fold on a corner of the piecewise-smooth branch (a kink of the sampled law) within
                 # the step: step along the branch beyond it instead of shrinking towards it
                 found = beyond(t, ds)
+                if found is not None and float(found[1] @ t) < cos_rev:
+                    sharp, found = found, None
                 if found is not None:
                     base, d2 = found
                     out = attempt(d2, ds, base)
@@ -714,6 +720,9 @@ def continue_branch(fun: Callable, x0: np.ndarray, lam0: float, lam_end: float, 
                         d = d2
                         y_new, mu_new, it, res, t_new, orient_new, changed, failure = out
                         counts["corners_passed"] += not changed
+                    else:
+                        log.debug("corner step at lam=%.6g (turn %.1f deg) refused: %s", mu * lam_scale,
+                                  np.rad2deg(np.arccos(np.clip(d2 @ t, -1, 1))), out[7])
             if failure is not None and opts.kink_lam_steps and ds <= opts.corner_ds:
                 out = across(t, ds)
                 if out is None and failure.startswith(RETRACE):
@@ -727,6 +736,19 @@ def continue_branch(fun: Callable, x0: np.ndarray, lam0: float, lam_end: float, 
                     d = t
                     y_new, mu_new, it, res, t_new, orient_new, changed, failure = out
                     counts["kinks_crossed"] += not changed
+            if failure is not None and sharp is not None and opts.retrace_tol is not None:
+                # the last resort at a fold on a kink whose piece beyond turns back by more than the
+                # reversal guard allows (a sharp corner: 168 deg on the 3D lap joint at N = 128, issue 14),
+                # where no step at fixed lam passes: that piece is the branch going on, if the retrace
+                # rule (which attempt() applies) tells it from the way it came
+                out = attempt(sharp[1], ds, sharp[0])
+                if out[7] is None:
+                    log.debug("sharp corner passed at lam=%.6g: the branch turns by %.1f deg (%s)", mu * lam_scale,
+                              np.rad2deg(np.arccos(np.clip(sharp[1] @ t, -1, 1))), failure)
+                    d = sharp[1]
+                    y_new, mu_new, it, res, t_new, orient_new, changed, failure = out
+                    counts["corners_passed"] += not changed
+                    counts["sharp_corners"] += not changed
             if failure is None and changed:
                 y, t = rebase(y, t)
                 R, J, dl = g(y, mu)
