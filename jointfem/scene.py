@@ -62,7 +62,7 @@ class SolverSpec:
     # and the forces integrated over the pieces (jointfem.contact._events; one tangential direction)
     aft: str = "sampled"
     # the band a branch may leave the sweep window into at a fold and still come back from (rad/s);
-    # None: the window widened by its span on each side (jointfem.analysis.frf)
+    # None: an octave each side of the window (jointfem.analysis.frf.default_omega_limits)
     omega_limits: tuple[float, float] | None = None
 
     @property

@@ -241,7 +241,7 @@ def test_jenkins_between_names_dofs_as_a_spring_does(tmp_path):
 
 def test_omega_limits_reach_the_continuation(tmp_path):
     """[solver] omega_limits is the band a frequency sweep's branch may leave its window into
-    (default None: the window widened by its span, analysis.frf); it reaches the sweep's options
+    (default None: an octave each side, analysis.frf.default_omega_limits); it reaches the sweep's options
     and no other analysis's continuation (a force or amplitude sweep has its own bounds)."""
     from jointfem.app import sweep_options
 
