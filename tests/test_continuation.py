@@ -81,7 +81,8 @@ def test_a_corner_sharper_than_the_reversal_guard_is_the_last_resort(sharp_ok):
     """The piece beyond the corner turns back by more than 180 - max_reversal_deg = 150 deg, and no
     step at fixed lam passes (there is no solution below lam = 0).  It is then taken, since the
     retrace rule tells it from the way the branch came (its legs part at sin(12 deg) = 0.21 of the
-    step, twice retrace_tol); without the retrace rule it is not, and the sweep stops at the corner
+    step, twice retrace_tol), as the last resort where the sweep would stop; without the retrace
+    rule it is not, and the sweep stops at the corner
     as it did before (below ds_min)."""
     k = np.tan(np.deg2rad(84.0))
     opts = ContinuationOptions(ds0=0.02, ds_max=0.02, max_points=2000, lam_bounds=(-1.0, 2 * k),

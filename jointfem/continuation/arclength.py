@@ -135,6 +135,9 @@ class ContinuationOptions:
     # way it came (issue 14: the 3D lap joint's penalty ROM at 1712.87 rad/s), which no local rule sees
     retrace_tol: float | None = 0.1
     time_limit: float | None = None  # s: the branch stops with a ContinuationError (points kept) past this
+    # a sharp corner (the last resort before a stop) may be probed from the last point converged to
+    # the tolerance this many points back, over points accepted only at the relaxed kink tolerance
+    max_relaxed_back: int = 50
     newton: NewtonOptions = field(default_factory=NewtonOptions)
 
 
@@ -689,6 +692,42 @@ def continue_branch(fun: Callable, x0: np.ndarray, lam0: float, lam_end: float, 
             raise _OutOfTime
         return g_plain(y_, mu_)
 
+    def sharp_corner(ds):
+        """A sharp corner's step (see its use): (points taken back, its length, its direction,
+        attempt()'s tuple) with the branch set back to its base, or None with nothing changed."""
+        nonlocal y, mu, t, orient
+        clean = [k for k in range(len(points)) if points[k].residual <= opts.newton.tol]
+        bases = [0]
+        if clean and 1 <= clean[-1] and 0 < len(points) - 1 - clean[-1] <= opts.max_relaxed_back:
+            bases.append(len(points) - 1 - clean[-1])
+        here = (y, mu, t, orient)
+        for back in bases:
+            if back:
+                k = len(points) - 1 - back
+                if adapt is not None:
+                    adapt.restore(adapt.state_of(points[k].x))
+                    rebase(y, t)
+                y, mu = space.sub(points[k].x), points[k].lam / lam_scale
+                sec = np.append(y - space.sub(points[k - 1].x), mu - points[k - 1].lam / lam_scale)
+                R, J, dl = g(y, mu)
+                t, _ = _tangent(J, dl, sec / max(np.linalg.norm(sec), 1e-300))
+                t, orient = _tangent(J, dl, t)
+            for trial in (ds, opts.corner_ds):
+                found = beyond(t, trial)
+                if found is None or float(found[1] @ t) >= cos_rev:
+                    continue
+                out = attempt(found[1], trial, found[0])
+                if out[7] is None:
+                    log.debug("sharp corner passed at lam=%.6g (%d points back): the branch turns by %.1f deg",
+                              mu * lam_scale, back, np.rad2deg(np.arccos(np.clip(found[1] @ t, -1, 1))))
+                    return back, trial, found[1], out
+            if back:  # (set forth again)
+                if adapt is not None:
+                    adapt.restore(adapt.state_of(points[-1].x))
+                    rebase(y, t)
+                y, mu, t, orient = here
+        return None
+
     try:
         while (mu - mu_end) * direction < 0:
             if len(points) >= opts.max_points:
@@ -704,13 +743,12 @@ def continue_branch(fun: Callable, x0: np.ndarray, lam0: float, lam_end: float, 
                 t, orient = _tangent(J, dl, t)  # (the orientation of the system it is now)
             d = t
             y_new, mu_new, it, res, t_new, orient_new, changed, failure = attempt(d, ds)
-            sharp = None  # a corner beyond the reversal guard, kept for when nothing else passes
             if failure is not None and opts.corner_steps and ds <= opts.corner_ds:
                 # a fold on a corner of the piecewise-smooth branch (a kink of the sampled law) within
                 # the step: step along the branch beyond it instead of shrinking towards it
                 found = beyond(t, ds)
                 if found is not None and float(found[1] @ t) < cos_rev:
-                    sharp, found = found, None
+                    found = None  # (a sharp corner: only where the branch would stop otherwise, below)
                 if found is not None:
                     base, d2 = found
                     out = attempt(d2, ds, base)
@@ -736,16 +774,21 @@ def continue_branch(fun: Callable, x0: np.ndarray, lam0: float, lam_end: float, 
                     d = t
                     y_new, mu_new, it, res, t_new, orient_new, changed, failure = out
                     counts["kinks_crossed"] += not changed
-            if failure is not None and sharp is not None and opts.retrace_tol is not None:
-                # the last resort at a fold on a kink whose piece beyond turns back by more than the
-                # reversal guard allows (a sharp corner: 168 deg on the 3D lap joint at N = 128, issue 14),
-                # where no step at fixed lam passes: that piece is the branch going on, if the retrace
-                # rule (which attempt() applies) tells it from the way it came
-                out = attempt(sharp[1], ds, sharp[0])
-                if out[7] is None:
-                    log.debug("sharp corner passed at lam=%.6g: the branch turns by %.1f deg (%s)", mu * lam_scale,
-                              np.rad2deg(np.arccos(np.clip(sharp[1] @ t, -1, 1))), failure)
-                    d = sharp[1]
+            if (failure is not None and 0.5 * ds < opts.ds_min and opts.corner_steps
+                    and opts.retrace_tol is not None):
+                # the last resort where the branch would stop: a fold on a kink whose piece beyond turns
+                # back by more than the reversal guard allows (a sharp corner: 168 deg on the 3D lap
+                # joint at N = 128, issue 14), probed over this step and over corner_ds, from the last
+                # point and, if points accepted only at the relaxed kink tolerance follow it, from the
+                # last point converged to the tolerance (those points crawl along the kink past the
+                # fold, off the branch: measured there).  The piece beyond is the branch going on if
+                # the retrace rule (which attempt() applies) tells it from the way it came.  Nothing
+                # changes on a branch that goes on without it.
+                out = sharp_corner(ds)
+                if out is not None:
+                    back, trial, d, out = out
+                    del points[len(points) - back:]
+                    ds = trial
                     y_new, mu_new, it, res, t_new, orient_new, changed, failure = out
                     counts["corners_passed"] += not changed
                     counts["sharp_corners"] += not changed
