@@ -36,6 +36,23 @@ BIG = [("big", 0.00095, 0.001, 0.005)]
 QUICK = [DOFS[0], ("pairs", 0.02, 0.003, 0.0125), ("pairs", 0.02, 0.003, 0.005)]
 
 
+def run_json(cmd: list[str], budget: float, row: dict) -> dict:
+    """Run ``cmd --json FILE`` in its own process, stopped past ``budget`` seconds: its JSON updated
+    with ``row``, status "done" and the wall seconds, or ``row`` with the status saying why not."""
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "r.json"
+        t0 = time.perf_counter()
+        try:
+            r = subprocess.run(cmd + ["--json", str(out)], cwd=ROOT, capture_output=True, text=True, timeout=budget)
+        except subprocess.TimeoutExpired:
+            return {**row, "status": f"over the budget of {budget:g} s"}
+        if r.returncode != 0 or not out.exists():
+            return {**row, "status": failure(r.returncode, r.stdout + r.stderr)}
+        res = json.loads(out.read_text())
+    res.update(row, status="done", wall_s=time.perf_counter() - t0)
+    return res
+
+
 def run_one(case, ranks: int, budget: float) -> dict:
     series, size, hn, hj = case
     cmd = [sys.executable, str(ROOT / "benchmarks" / "offline_stages.py"), "--size", str(size), "--size-normal",
@@ -44,18 +61,7 @@ def run_one(case, ranks: int, budget: float) -> dict:
         from bench import mpirun
 
         cmd = mpirun(ranks) + cmd
-    with tempfile.TemporaryDirectory() as tmp:
-        out = Path(tmp) / "r.json"
-        t0 = time.perf_counter()
-        try:
-            r = subprocess.run(cmd + ["--json", str(out)], cwd=ROOT, capture_output=True, text=True, timeout=budget)
-        except subprocess.TimeoutExpired:
-            return {"series": series, "ranks": ranks, "case": list(case[1:]), "status": f"over the budget of {budget:g} s"}
-        if r.returncode != 0 or not out.exists():
-            return {"series": series, "ranks": ranks, "case": list(case[1:]), "status": failure(r.returncode, r.stdout + r.stderr)}
-        res = json.loads(out.read_text())
-    res.update(series=series, case=list(case[1:]), status="done", wall_s=time.perf_counter() - t0)
-    return res
+    return run_json(cmd, budget, {"series": series, "ranks": ranks, "case": list(case[1:])})
 
 
 def failure(code: int, output: str) -> str:
@@ -129,9 +135,15 @@ def plot(runs, path: Path):
         ax.set_xlabel("DOFs" if var == "dofs" else "contact pairs")
         ax.set_ylabel("peak memory of the largest rank [GB]" if what == "memory" else "time [s]")
         ax.set_title({"time": f"offline stages against {var}", "memory": "peak memory per rank"}[what])
+    save_loglog(fig, axes, path, fontsize=7)
+
+
+def save_loglog(fig, axes, path: Path, *, fontsize: int):
+    """Grid and legend on each axes, then the figure to ``path`` (its folder made)."""
+    for ax in axes:
         ax.grid(True, which="both", alpha=0.3)
         if ax.get_legend_handles_labels()[0]:
-            ax.legend(fontsize=7)
+            ax.legend(fontsize=fontsize)
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110)
