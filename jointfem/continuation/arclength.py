@@ -696,10 +696,12 @@ def continue_branch(fun: Callable, x0: np.ndarray, lam0: float, lam_end: float, 
         """A sharp corner's step (see its use): (points taken back, its length, its direction,
         attempt()'s tuple) with the branch set back to its base, or None with nothing changed."""
         nonlocal y, mu, t, orient
-        clean = [k for k in range(len(points)) if points[k].residual <= opts.newton.tol]
         bases = [0]
-        if clean and 1 <= clean[-1] and 0 < len(points) - 1 - clean[-1] <= opts.max_relaxed_back:
-            bases.append(len(points) - 1 - clean[-1])
+        # (the last point converged to the tolerance, at most max_relaxed_back behind, with one before it)
+        back = next((b for b in range(1, min(opts.max_relaxed_back, len(points) - 2) + 1)
+                     if points[-1 - b].residual <= opts.newton.tol), None)
+        if points[-1].residual > opts.newton.tol and back is not None:
+            bases.append(back)
         here = (y, mu, t, orient)
         for back in bases:
             if back:
