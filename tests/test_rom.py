@@ -61,7 +61,7 @@ def test_penalty_linear_frf_is_modal_truncation():
 def _rom_coordinates(rom, hbm_full, U, omega):
     """Full solution -> penalty ROM coordinates (complete modal basis): p from consistency."""
     h = hbm_full.harmonics
-    n, nh = rom.full.num_dofs, h.num_hc
+    n, nh = hbm_full.structure.num_dofs, h.num_hc
     Uf = U.reshape(nh, n)
     g = hbm_full.structure.contacts[0]
     G = hbm_full.gaps(U)[0]
@@ -71,7 +71,7 @@ def _rom_coordinates(rom, hbm_full, U, omega):
     f0[0] = g.pairs.preload  # the preload is static: harmonic 0 only
     p = (G - (res.F - f0) / kc).reshape(nh, -1)
     Phi = rom.T[:, :rom.num_modes]
-    eta = (Uf - p @ rom.T[:, rom.p_slots].T) @ (rom.full.M @ Phi)
+    eta = (Uf - p @ rom.T[:, rom.p_slots].T) @ (hbm_full.structure.M @ Phi)
     return np.hstack([eta, p]).ravel()
 
 

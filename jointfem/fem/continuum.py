@@ -192,8 +192,25 @@ class Mesh:
     washers: np.ndarray | None = None
 
 
-def build_mesh(spec: ContinuumSpec, comm=None) -> Mesh:
-    """Stages 1-3: gmsh, dolfinx assembly, gather in canonical order."""
+@dataclass
+class Assembled:
+    """Stages 1-2 on every rank: the distributed dolfinx mesh, its spaces and tags, and K, M as the
+    PETSc matrices dolfinx assembled (no boundary conditions; block size dim)."""
+
+    layout: geo.Layout
+    mesh: object
+    V: object  # vector Lagrange space
+    W: object  # scalar Lagrange space
+    cell_tags: object
+    facet_tags: object
+    K: object  # PETSc Mat, N/m
+    M: object  # PETSc Mat, kg
+    thick: float  # the plane-stress width in 2D, 1 in 3D
+    timings: dict
+
+
+def assemble(spec: ContinuumSpec, comm=None) -> Assembled:
+    """Stages 1-2: gmsh on rank 0, the mesh distributed by dolfinx, K and M assembled by dolfinx."""
     compat.import_dolfinx()
     import gmsh
     import ufl
@@ -235,6 +252,20 @@ def build_mesh(spec: ContinuumSpec, comm=None) -> Mesh:
 
     Kp = compat.assemble_matrix(thick * ufl.inner(sigma(u), eps(v)) * ufl.dx)
     Mp = compat.assemble_matrix(thick * rho * ufl.inner(u, v) * ufl.dx)
+    t2 = time.perf_counter()
+    return Assembled(layout, mesh, V, W, cell_tags, facet_tags, Kp, Mp, thick,
+                     {"mesh_s": t1 - t0, "assembly_s": t2 - t1})
+
+
+def build_mesh(spec: ContinuumSpec, comm=None) -> Mesh:
+    """Stages 1-3: gmsh, dolfinx assembly, gather in canonical order."""
+    import ufl
+    from mpi4py import MPI
+
+    comm = comm or MPI.COMM_WORLD
+    asm = assemble(spec, comm)
+    layout, mesh, V, W, cell_tags, facet_tags = asm.layout, asm.mesh, asm.V, asm.W, asm.cell_tags, asm.facet_tags
+    Kp, Mp, thick, d = asm.K, asm.M, asm.thick, layout.dim
     t2 = time.perf_counter()
 
     # canonical node order from the vector space's blocks
@@ -297,7 +328,7 @@ def build_mesh(spec: ContinuumSpec, comm=None) -> Mesh:
     Kp.destroy()
     Mp.destroy()
     return Mesh(d, coords, sub, K, M, clamped, contact, area, normal, layout.extent,
-                {"mesh_s": t1 - t0, "assembly_s": t2 - t1, "gather_s": t3 - t2},
+                dict(asm.timings, gather_s=t3 - t2),
                 cells=mesh.topology.index_map(d).size_global, washers=washers)
 
 
@@ -425,6 +456,16 @@ def frames(normal: np.ndarray, dim: int) -> np.ndarray:
     return np.stack([t1, t2, n], axis=1)
 
 
+def gap_entries(a: np.ndarray, b: np.ndarray, R: np.ndarray):
+    """(values, (rows, columns)) of the gap operator: row p*m + i of pair p (nodes a[p] of A, b[p]
+    of B, frame R[p] (m, d)) is R[p, i] on A's DOFs d*a[p] + c and -R[p, i] on B's."""
+    P, m, d = R.shape
+    rows = np.repeat(np.arange(P * m), 2 * d)
+    both = np.concatenate([d * a[:, None] + np.arange(d), d * b[:, None] + np.arange(d)], axis=1)  # (P, 2d)
+    cols = np.broadcast_to(both[:, None, :], (P, m, 2 * d)).ravel()
+    return np.concatenate([R, -R], axis=2).ravel(), (rows, cols)
+
+
 def washer_loads(mesh: Mesh, spec: ContinuumSpec) -> np.ndarray:
     """The bolts' forces on the outer faces (all DOFs, N): each bolt pushes the face of A opposite
     the joint towards B, and B's towards A, by ``force`` N, a uniform pressure over the washer (the
@@ -487,6 +528,27 @@ def support_springs(mesh: Mesh, spec: ContinuumSpec) -> np.ndarray:
     return k
 
 
+def pair_springs(spec: ContinuumSpec, xz: np.ndarray, area: np.ndarray):
+    """The pairs kept (all, or those under a bolt patch), and their N0 (N), kt and kn (N/m) from the
+    nodal areas: a uniform pressure plus each bolt's force shared by area over its patch (zero with
+    preload = "static", whose solve sets N0 later).  xz (P, 2): the pairs' (x, z), m."""
+    N0 = spec.pressure * area
+    under = np.zeros(area.size, dtype=bool)
+    for k, bolt in enumerate(spec.bolts if spec.preload == "uniform" else ()):
+        inside = np.hypot(xz[:, 0] - bolt.x, xz[:, 1] - bolt.z) <= bolt.radius
+        if not inside.any():
+            raise ContinuumError(f"{spec.source}: bolt {k} at x = {bolt.x}, z = {bolt.z} m with radius "
+                                 f"{bolt.radius} m covers no contact node")
+        N0 = N0 + bolt.force * inside * area / area[inside].sum()
+        under |= inside
+    keep = under if spec.patches_only else np.ones(area.size, dtype=bool)
+    if spec.preload == "static":
+        N0 = np.zeros(area.size)  # from the static solve
+    area, N0 = area[keep], N0[keep]
+    total = area.sum()
+    return keep, N0, spec.kt * area + spec.kt_total * area / total, spec.kn * area + spec.kn_total * area / total
+
+
 def static_preload(mesh: Mesh, spec: ContinuumSpec, K, G, free, kt, kn, g0=None):
     """The static contact state under the bolts' washer loads (models.preload)."""
     from ..models.preload import solve_static_contact
@@ -521,36 +583,17 @@ def create_continuum(spec: ContinuumSpec, comm=None, mesh: Mesh | None = None) -
             raise ContinuumError(f"{spec.source}: {int(np.sum(area <= 0))} contact nodes have zero area "
                                  f"(the corners of degree-2 triangles do): use structured quadrilateral/hexahedral "
                                  f"elements ([mesh] structured = true) or degree = 1")
-        xz = mesh.coords[a][:, [0, 2]]
-        N0 = spec.pressure * area
-        under = np.zeros(a.size, dtype=bool)
-        for k, bolt in enumerate(spec.bolts if spec.preload == "uniform" else ()):
-            inside = np.hypot(xz[:, 0] - bolt.x, xz[:, 1] - bolt.z) <= bolt.radius
-            if not inside.any():
-                raise ContinuumError(f"{spec.source}: bolt {k} at x = {bolt.x}, z = {bolt.z} m with radius "
-                                     f"{bolt.radius} m covers no contact node")
-            N0 = N0 + bolt.force * inside * area / area[inside].sum()
-            under |= inside
-        keep = under if spec.patches_only else np.ones(a.size, dtype=bool)
-        if spec.preload == "static":
-            N0 = np.zeros(a.size)  # from the static solve below
-        a, b, area, N0 = a[keep], b[keep], area[keep], N0[keep]
+        keep, N0, kt, kn = pair_springs(spec, mesh.coords[a][:, [0, 2]], area)
+        a, b, area = a[keep], b[keep], area[keep]
         total = area.sum()
-        kt = spec.kt * area + spec.kt_total * area / total
-        kn = spec.kn * area + spec.kn_total * area / total
         g0 = None
         if spec.gap is not None:
             g0 = spec.gap.at(mesh.coords[a][:, [0, 2]], d, spec.source)
             g0 = np.where(g0 > 1e-12 * mesh.extent, g0, 0.0)  # a gap of the coordinates' round-off is contact
             if spec.preload == "uniform":  # no preload (the scene checks): each pair open by its g0
                 N0 = np.where(g0 > 0, -kn * g0, N0)
-        R = frames(mesh.normal[a], d)  # (P, m, d)
-        P, m = a.size, d
-        rows = np.repeat(np.arange(P * m), 2 * d)
-        both = np.concatenate([d * a[:, None] + np.arange(d), d * b[:, None] + np.arange(d)], axis=1)  # (P, 2d)
-        cols = np.broadcast_to(both[:, None, :], (P, m, 2 * d)).ravel()
-        vals = np.concatenate([R, -R], axis=2).ravel()  # row (p, i): R[p, i] on A's DOFs, -R[p, i] on B's
-        gap_all = sp.csr_matrix((vals, (rows, cols)), shape=(P * m, n_all))
+        P = a.size
+        gap_all = sp.csr_matrix(gap_entries(a, b, frames(mesh.normal[a], d)), shape=(P * d, n_all))
     clamped_dofs = (d * mesh.clamped[:, None] + np.arange(d)[None, :]).ravel()
     free = np.setdiff1d(np.arange(n_all), clamped_dofs)
     K = mesh.K[free][:, free].tocsr()

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..harmonics import Harmonics
+from ..linalg import RowBlocks
 from ..models.structure import Structure
 from .problem import Evaluation, Layout, PointRecord, Problem, Scales, contact_records, count_exponents, force_scale
 from .residual import HBMResidual
@@ -24,7 +25,7 @@ def compute_scales(structure: Structure, omega_start: float, omega_end: float, *
     return np.maximum(X, 1e-6 * top)
 
 
-def compute_rom_scales(structure: Structure, T: np.ndarray, omega_start: float, omega_end: float, *,
+def compute_rom_scales(structure: Structure, T: "np.ndarray | RowBlocks", omega_start: float, omega_end: float, *,
                        num: int = 101, displacements: int = 0) -> np.ndarray:
     """Scale per ROM coordinate: its stuck linear amplitude, but at least the amplitude at which
     its basis vector alone reaches the largest linear displacement of the structure.
@@ -36,13 +37,14 @@ def compute_rom_scales(structure: Structure, T: np.ndarray, omega_start: float, 
     not coordinates of ``structure`` (the penalty ROM's internal variables p, inactive in its stuck
     structure): their scale is the largest displacement.
     """
+    T = T if isinstance(T, RowBlocks) else RowBlocks(np.asarray(T), np.shape(T)[0])
     w = np.linspace(min(omega_start, omega_end), max(omega_start, omega_end), num)
-    q = T.shape[1] - displacements
+    q = T.num_cols - displacements
     X = np.abs(structure.linear_response(w))  # (num, q)
-    top = np.abs(X @ T[:, :q].T).max()
+    top = T.max_abs_product(X, q)
     if not np.isfinite(top) or top <= 0:
         top = 1.0
-    col = np.abs(T[:, :q]).max(axis=0)
+    col = T.col_max(q)
     zs = np.maximum(X.max(axis=0), top / np.where(col > 0, col, 1.0))
     return np.concatenate([zs, np.full(displacements, top)])
 

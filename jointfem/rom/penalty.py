@@ -28,7 +28,8 @@ the step is redone (continuation's ``adapt`` hook).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+import time
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import scipy.sparse as sp
@@ -38,7 +39,7 @@ from ..harmonics import Harmonics
 from ..hbm.forced import compute_rom_scales
 from ..hbm.problem import Evaluation, Layout, PointRecord, Problem, Scales, count_exponents, force_scale
 from ..hbm.residual import HBMResidual
-from ..linalg import Factorized, LinAlgError, eigen
+from ..linalg import Factorized, LinAlgError, RowBlocks, allreduce, eigen, eigen_rows, gram, solve_rows
 from ..models.structure import ContactGroup, Structure
 from .cms import trial_vector_derivatives
 from .common import ReducedModel, RomError, RomOptions, check_modes
@@ -62,67 +63,162 @@ class _Group:
     Gr: np.ndarray  # (P*m, q): gaps from the ROM coordinates
 
 
+@dataclass
+class PenaltyData:
+    """What the offline stage hands the penalty ROM: reduced matrices and single rows only, and the
+    basis T = [Phi, V, Psi] (n, q) for recovery, replicated or in row blocks (distributed)."""
+
+    K_lin: np.ndarray  # T^T K_lin T (q, q)
+    M: np.ndarray  # T^T M T
+    D: np.ndarray  # T^T D T
+    GT: np.ndarray  # (J, q): the gaps of every basis vector
+    kc: np.ndarray  # (J,): the stuck stiffness of every contact component
+    fc: np.ndarray  # (q,): T^T fc
+    fs: np.ndarray
+    f0: np.ndarray | None
+    outputs: dict  # name -> (q,): the output's row of T
+    basis: RowBlocks
+    num_modes: int
+    num_tvd: int
+    tvd_singular_values: np.ndarray
+    timings: dict = field(default_factory=dict)  # s per offline stage (the distributed one records them)
+
+
+def _stuck_springs(kc: np.ndarray, what: str) -> None:
+    if np.any(kc <= 0):
+        raise RomError(f"{what}: {int(np.sum(kc <= 0))} contact components have no stuck stiffness (a cubic "
+                       "spring): the penalty ROM's internal variables need a stuck spring; use tvd, cb, exact or "
+                       "full order")
+
+
+def _offline_replicated(structure: Structure, options: RomOptions) -> PenaltyData:
+    """Modes, TVDs and static modes of a Structure held whole on this rank (closed at rest)."""
+    Kl = structure.K_lin
+    w2, Phi = eigen(Kl, structure.M, options.modes, what="penalty: stuck structure")
+    check_modes(Phi, structure.M, "penalty: the stuck vibration modes")
+    if options.tvd and options.tvd_kind == "eq12":
+        raise RomError("penalty: the paper's TVDs (tvd_kind = 'eq12', Eq. 12) are combinations of the static "
+                       "modes, K_lin^-1 dK_lin/dq_j b_i = sum_c (g_c b_i)(g_c b_j) psi_c / l, because each contact "
+                       "spring's stiffness change has rank one; this ROM already holds the static mode of every "
+                       "active component, so they add nothing, and make it singular once every component is "
+                       "active (docs/theory.md, TVDs); use tvd_kind = 'eigen' here, or the tvd method")
+    V, sv = trial_vector_derivatives(structure, Phi, w2, options.tvd, kind=options.tvd_kind)
+    G = sp.vstack([g.gap for g in structure.contacts]).tocsr()
+    kc = np.concatenate([g.pairs.stiffness.ravel() for g in structure.contacts])
+    _stuck_springs(kc, "penalty")
+    try:
+        Psi = Factorized(Kl, what="penalty: K_lin").solve(G.T.toarray() * kc)  # (n, J)
+    except LinAlgError as exc:
+        raise RomError(str(exc)) from exc
+    Tu = np.hstack([Phi, V, Psi])
+    return PenaltyData(Tu.T @ (Kl @ Tu), Tu.T @ (structure.M @ Tu), Tu.T @ (structure.D @ Tu), G @ Tu, kc,
+                       Tu.T @ structure.fc, Tu.T @ structure.fs, None if structure.f0 is None else Tu.T @ structure.f0,
+                       {nm: Tu[dof].copy() for nm, dof in structure.outputs.items()},
+                       RowBlocks(Tu, Tu.shape[0]), Phi.shape[1], V.shape[1], sv)
+
+
+def _offline_distributed(model, options: RomOptions) -> PenaltyData:
+    """The same from a jointed continuum kept distributed (jointfem.fem.distributed.DistributedModel):
+    the modes and static modes stay in the rows each rank owns, and only the reduced matrices, the
+    gap rows (J, q) and the force and output rows cross the ranks (linalg.gram, allreduce)."""
+    if options.tvd:
+        raise RomError("penalty: the distributed offline stage has no trial-vector derivatives yet (tvd = 0)")
+    comm = model.comm
+    kc = model.pairs.stiffness.ravel()
+    _stuck_springs(kc, "penalty")
+    t0 = time.perf_counter()
+    try:
+        w2, Phi = eigen_rows(model.K_lin, model.M, options.modes, what="penalty: stuck structure", comm=comm)
+        m = Phi.num_cols
+        check_modes(np.eye(m), gram(model.M, Phi), "penalty: the stuck vibration modes")
+        T = RowBlocks(np.empty((Phi.local.shape[0], m + kc.size)), model.n, Phi.offset, comm)
+        T.local[:, :m] = Phi.local
+        del Phi
+        t1 = time.perf_counter()
+        solve_rows(model.K_lin, sp.csr_matrix(model.gap_local.T) @ sp.diags(kc), what="penalty: K_lin", comm=comm,
+                   out=T.local[:, m:])
+    except LinAlgError as exc:
+        raise RomError(str(exc)) from exc
+    t2 = time.perf_counter()
+    # T^T K_lin T without a product over the n rows but the modes': K_lin Psi = G^T Kc, so the
+    # blocks that hold Psi are gap rows, Phi^T G^T Kc and Psi^T G^T Kc = (G Psi)^T Kc
+    GT = allreduce(comm, model.gap_local @ T.local)
+    Kl = np.zeros((T.num_cols, T.num_cols))
+    Kl[:m, :m] = gram(model.K_lin, T, cols=m)
+    Kl[:, m:] = GT.T * kc
+    Kl[m:, :m] = Kl[:m, m:].T
+    Kl = 0.5 * (Kl + Kl.T)
+    Mr = gram(model.M, T)
+    alpha, beta = model.rayleigh
+    Dr = alpha * Mr + beta * (Kl - GT.T @ (kc[:, None] * GT))  # T^T K T: K_lin without the stuck springs
+    row, amplitude = model.force
+    names = list(model.outputs)
+    rows = T.rows(np.array([row] + [model.outputs[nm] for nm in names], dtype=np.int64))
+    timings = {"eigen_s": t1 - t0, "static_s": t2 - t1, "projection_s": time.perf_counter() - t2}
+    return PenaltyData(Kl, Mr, Dr, GT, kc, amplitude * rows[0], np.zeros(T.num_cols), None,
+                       dict(zip(names, rows[1:])), T, m, 0, np.zeros(0), timings)
+
+
 class PenaltyROM(ReducedModel):
-    """The offline part: modes, TVDs, static modes and the augmented reduced matrices."""
+    """The offline part: modes, TVDs, static modes and the augmented reduced matrices.
+
+    ``structure``: the full model, replicated; or None with ``distributed``, a jointed continuum
+    kept distributed (jointfem.fem.distributed), whose n-sized data never leave their ranks."""
 
     STRUCTURES_KEPT = 16  # reduced Structures kept for the most recent active sets
 
-    def __init__(self, structure: Structure, options: RomOptions):
-        if not structure.contacts:
-            raise RomError("penalty: the model has no contact pairs")
+    def __init__(self, structure: Structure | None, options: RomOptions, *, distributed=None):
         self.options = options
-        n = structure.num_dofs
-        # a pair open at rest (an initial gap, N0 < 0) has no stuck stiffness, but the augmented
-        # system is exact for any Kc > 0: its basis and Kc take the pair as if closed at rest, and
-        # the pair stays active (JenkinsPairs.linear_breaks), so its p carries its real force
-        physical = structure
-        structure = replace(structure, contacts=tuple(replace(g, pairs=g.pairs.closed_at_rest())
-                                                      for g in structure.contacts))
-        Kl = structure.K_lin
-        w2, Phi = eigen(Kl, structure.M, options.modes, what="penalty: stuck structure")
-        check_modes(Phi, structure.M, "penalty: the stuck vibration modes")
-        if options.tvd and options.tvd_kind == "eq12":
-            raise RomError("penalty: the paper's TVDs (tvd_kind = 'eq12', Eq. 12) are combinations of the static "
-                           "modes, K_lin^-1 dK_lin/dq_j b_i = sum_c (g_c b_i)(g_c b_j) psi_c / l, because each contact "
-                           "spring's stiffness change has rank one; this ROM already holds the static mode of every "
-                           "active component, so they add nothing, and make it singular once every component is "
-                           "active (docs/theory.md, TVDs); use tvd_kind = 'eigen' here, or the tvd method")
-        V, sv = trial_vector_derivatives(structure, Phi, w2, options.tvd, kind=options.tvd_kind)
-        G = sp.vstack([g.gap for g in structure.contacts]).tocsr()
-        kc = np.concatenate([g.pairs.stiffness.ravel() for g in structure.contacts])
-        if np.any(kc <= 0):
-            raise RomError(f"penalty: {int(np.sum(kc <= 0))} contact components have no stuck stiffness (a cubic "
-                           "spring): the penalty ROM's internal variables need a stuck spring; use tvd, cb, exact or "
-                           "full order")
-        try:
-            Psi = Factorized(Kl, what="penalty: K_lin").solve(G.T.toarray() * kc)  # (n, J)
-        except LinAlgError as exc:
-            raise RomError(str(exc)) from exc
-        self.num_modes, self.num_tvd, self.num_comp = Phi.shape[1], V.shape[1], kc.size
-        Tu = np.hstack([Phi, V, Psi])
-        q = Tu.shape[1]
+        if distributed is not None:
+            data = _offline_distributed(distributed, options)
+            n = distributed.num_dofs
+            physical = (ContactGroup(distributed.pairs, sp.csr_matrix(data.GT), names=distributed.names,
+                                     coords=distributed.coords, areas=distributed.areas),)
+        else:
+            if not structure.contacts:
+                raise RomError("penalty: the model has no contact pairs")
+            n = structure.num_dofs
+            physical = structure.contacts
+            # a pair open at rest (an initial gap, N0 < 0) has no stuck stiffness, but the augmented
+            # system is exact for any Kc > 0: its basis and Kc take the pair as if closed at rest, and
+            # the pair stays active (JenkinsPairs.linear_breaks), so its p carries its real force
+            data = _offline_replicated(replace(structure, contacts=tuple(
+                replace(g, pairs=g.pairs.closed_at_rest()) for g in structure.contacts)), options)
+        self.num_modes, self.num_tvd, kc, GT = data.num_modes, data.num_tvd, data.kc, data.GT
+        self.num_comp = kc.size
+        q = data.K_lin.shape[0]
         self.p_slots = np.arange(q - kc.size, q)
         S = np.zeros((kc.size, q))
         S[:, self.p_slots] = np.eye(kc.size)
-        GT = G @ Tu
         KcGT = kc[:, None] * GT
-        self.K = Tu.T @ (Kl @ Tu) - GT.T @ (kc[:, None] * S) - S.T @ KcGT + S.T @ (kc[:, None] * S)
+        self.K = data.K_lin - GT.T @ (kc[:, None] * S) - S.T @ KcGT + S.T @ (kc[:, None] * S)
         self.K = 0.5 * (self.K + self.K.T)
-        self.M = Tu.T @ (structure.M @ Tu)
-        self.D = Tu.T @ (structure.D @ Tu)
-        self.kc = kc
+        self.M, self.D, self.kc = data.M, data.D, kc
+        self.forces = (data.fc, data.fs, data.f0)
+        self.output_rows = data.outputs
+        self.rows = data.basis  # the basis T (n, q), replicated or in row blocks
         self.groups, first = [], 0
-        for g in physical.contacts:  # the laws as they are (open pairs open)
-            rows = g.pairs.num_pairs * g.pairs.num_comp
-            self.groups.append(_Group(g, first, GT[first:first + rows]))
-            first += rows
-        self.full = physical
-        self.T = Tu
+        for g in physical:  # the laws as they are (open pairs open)
+            m_rows = g.pairs.num_pairs * g.pairs.num_comp
+            self.groups.append(_Group(g, first, GT[first:first + m_rows]))
+            first += m_rows
+        every = Structure(K=sp.csr_matrix((0, 0)), M=sp.csr_matrix((0, 0)), D=sp.csr_matrix((0, 0)), fc=np.zeros(0),
+                          fs=np.zeros(0), contacts=tuple(physical))
+        self.pair_names, self.pair_coords, self.pair_areas = every.pair_names, every.pair_coords, every.pair_areas
         self._cache: dict[bytes, Structure] = {}
         stuck = self.structure_for(np.zeros(kc.size, bool))
-        super().__init__("penalty", stuck, Tu, n, info={"modes": self.num_modes, "tvd": self.num_tvd,
-                                                         "static_modes_available": int(kc.size),
-                                                         "tvd_singular_values": sv[:10].tolist()})
+        T = data.basis.local if data.basis.comm is None else None
+        super().__init__("penalty", stuck, T, n, info={"modes": self.num_modes, "tvd": self.num_tvd,
+                                                        "static_modes_available": int(kc.size),
+                                                        "offline": "replicated" if T is not None else "distributed",
+                                                        "offline_timings": data.timings,
+                                                        "tvd_singular_values": data.tvd_singular_values[:10].tolist()})
+
+    def reconstruct(self, Z: np.ndarray) -> np.ndarray:
+        if self.T is None:
+            raise RomError("penalty: the basis stays in row blocks on the ranks (the distributed offline stage): "
+                           "the physical DOFs are not gathered; the outputs and the contact gaps are")
+        return super().reconstruct(Z)
 
     # --- the ROM for one active set -------------------------------------------------------
     @property
@@ -167,12 +263,11 @@ class PenaltyROM(ReducedModel):
             contacts.append(ContactGroup(g.pairs.subset(sel), sp.csr_matrix(gr.Gr[np.ix_(rows, keep)]),
                                          names=tuple(np.array(g.names)[sel]) if g.names else (),
                                          load=sp.csr_matrix(load)))
-        fs = self.full
-        T = self.T[:, keep]
-        s = Structure(K=sp.csr_matrix(K), M=sp.csr_matrix(M), D=sp.csr_matrix(D), fc=T.T @ fs.fc,
-                      fs=T.T @ fs.fs, contacts=tuple(contacts), f0=None if fs.f0 is None else T.T @ fs.f0,
+        fc, fs, f0 = self.forces
+        s = Structure(K=sp.csr_matrix(K), M=sp.csr_matrix(M), D=sp.csr_matrix(D), fc=fc[keep], fs=fs[keep],
+                      contacts=tuple(contacts), f0=None if f0 is None else f0[keep],
                       dof_names=tuple(f"penalty.{i}" for i in keep),
-                      outputs={nm: T[dof].copy() for nm, dof in fs.outputs.items()},
+                      outputs={nm: row[keep] for nm, row in self.output_rows.items()},
                       info={"kind": "rom:penalty", "active": int(np.count_nonzero(mask))})
         return _keep_recent(self._cache, key, s, self.STRUCTURES_KEPT)
 
@@ -208,10 +303,9 @@ class PenaltyProblem(Problem, Adaptive):
         self.rom, self.harmonics = rom, harmonics
         self.adaptation = self
         self.q = rom.K.shape[0]
-        full = rom.full
         self.layout = Layout(self.q, tuple(f"penalty.{i}" for i in range(self.q)),
-                             {nm: rom.T[dof].copy() for nm, dof in full.outputs.items()},
-                             full.pair_names, full.pair_coords, full.pair_areas)
+                             {nm: row.copy() for nm, row in rom.output_rows.items()},
+                             rom.pair_names, rom.pair_coords, rom.pair_areas)
         self.mask = np.zeros(rom.num_comp, bool)
         self.history: list[np.ndarray] = []  # per accepted point: components that slipped/separated/p != 0
         self.friction_tol = friction_tol
@@ -384,5 +478,5 @@ class PenaltyProblem(Problem, Adaptive):
         active set, so that the arclength metric does not change when the unknowns do; the
         residual's, the largest force on the stuck ROM's coordinates."""
         stuck = self.rom.structure_for(np.zeros(self.rom.num_comp, bool))
-        per = compute_rom_scales(stuck, self.rom.T, omega_start, omega_end, displacements=self.rom.num_comp)
+        per = compute_rom_scales(stuck, self.rom.rows, omega_start, omega_end, displacements=self.rom.num_comp)
         return Scales.from_coordinates(per, self.harmonics, force_scale(stuck))
