@@ -249,6 +249,40 @@ def check_forced_resonances(scene: Scene, structure: Structure, max_dofs: int = 
                              f"(add a damper on {dof}, or move the range)")
 
 
+@dataclass(frozen=True)
+class ModelSummary:
+    """What the writers need of a model whose matrices stay distributed on the ranks (--offline
+    distributed): never K or M, which no rank holds whole."""
+
+    num_dofs: int
+    num_pairs: int
+    outputs: dict
+    info: dict
+
+
+def _distributed_rom(scene: Scene, method: str, rom_options: RomOptions):
+    """The penalty ROM from the distributed offline stage (jointfem.fem.distributed), and the model's
+    summary; refused, before any work, for what that stage does not take."""
+    if method != "penalty":
+        raise SceneError(scene.path, "--offline", "distributed", f"is the penalty ROM's offline stage: --method "
+                                                                 f"{method} needs the replicated model")
+    if not scene.kind.startswith("continuum"):
+        raise SceneError(scene.path, "--offline", "distributed", f"is for continuum scenes (this one is {scene.kind})")
+    from .fem.distributed import create_distributed
+    from .rom.penalty import PenaltyROM
+
+    t0 = time.perf_counter()
+    model = create_distributed(scene.model)
+    t1 = time.perf_counter()
+    try:
+        rom = PenaltyROM(None, rom_options, distributed=model)
+    finally:
+        model.destroy()
+    rom.offline_s = time.perf_counter() - t1
+    info = dict(model.info, timings=dict(model.info["timings"], distributed_model_s=t1 - t0))
+    return ModelSummary(model.num_dofs, int(model.info["num_pairs"]), dict(model.outputs), info), rom
+
+
 def solve_scene(scene: Scene, *, progress: bool = False, method: str = "full",
                 rom_options: RomOptions = RomOptions(), stability: str = "auto",
                 keep_incomplete: bool = False, resume: Resume | None = None) -> SceneSolution:
@@ -259,10 +293,13 @@ def solve_scene(scene: Scene, *, progress: bool = False, method: str = "full",
     load_resume) goes on with a branch that stopped."""
     check_solvable(scene)
     t0 = time.perf_counter()
-    structure = create_structure(scene)
-    check_resources(scene, structure)
-    check_forced_resonances(scene, structure)
-    rom = None if method == "full" else build_rom(structure, method, rom_options)
+    if rom_options.offline == "distributed":
+        structure, rom = _distributed_rom(scene, method, rom_options)
+    else:
+        structure = create_structure(scene)
+        check_resources(scene, structure)
+        check_forced_resonances(scene, structure)
+        rom = None if method == "full" else build_rom(structure, method, rom_options)
     t_build = time.perf_counter() - t0
     s = scene.solver
     check_time(scene, structure if rom is None else rom, largest_harmonics(scene), s.omega_start)

@@ -23,7 +23,8 @@ from .scene import SceneError, load_scene
 def _rom_options(args) -> RomOptions:
     if args.modes < 0 or args.tvd < 0:
         raise RomError(f"--modes = {args.modes} and --tvd = {args.tvd} must be >= 0")
-    return RomOptions(modes=args.modes, tvd=args.tvd, tvd_kind=args.tvd_kind)
+    return RomOptions(modes=args.modes, tvd=args.tvd, tvd_kind=args.tvd_kind,
+                      offline=getattr(args, "offline", "replicated"))
 
 
 def _tvd_kind_arg(parser) -> None:
@@ -250,6 +251,9 @@ def build_parser() -> argparse.ArgumentParser:
     f.add_argument("--tvd", type=int, default=defaults.ROM_TVD,
                    help=f"trial-vector derivatives (penalty, tvd; default {defaults.ROM_TVD})")
     _tvd_kind_arg(f)
+    f.add_argument("--offline", choices=("replicated", "distributed"), default="replicated",
+                   help="penalty on a continuum scene: replicated (default: every MPI rank holds K, M and the basis) "
+                        "or distributed (they stay in row blocks on the ranks; the deformed shape is not written)")
     f.add_argument("--quiet", action="store_true", help="no progress bar or summary")
     f.add_argument("--plots", action="store_true", help="also the contact-state pictures (as `jointfem plot`)")
     f.add_argument("--resume", metavar="DIR", help="go on with the incomplete sweep in DIR (same scene, method, H, N), "

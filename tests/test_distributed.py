@@ -136,3 +136,45 @@ def test_what_the_distributed_stage_does_not_take_is_refused_by_name(change, mat
     with pytest.raises(ContinuumError, match=match) as exc:
         create_distributed(replace(lap_spec(0.03, 1.0), **change))
     assert "lap3d_distributed.toml" in str(exc.value)
+
+
+@pytest.mark.slow
+def test_cli_offline_distributed_on_two_ranks_equals_serial(tmp_path):
+    """`mpirun -n 2 jointfem frf demos/lap3d.toml --method penalty --offline distributed`: the FRF of
+    the serial replicated run (the same first point to 1e-8; every point on the serial curve to
+    1e-6 of the peak, as tests/test_continuum.py compares MPI runs), pictures drawn, no deformed
+    shape written (its basis is not gathered), the summary says which offline stage ran."""
+    from scipy.interpolate import CubicSpline
+
+    args = [sys.executable, "-m", "jointfem", "frf", str(ROOT / "demos" / "lap3d.toml"), "--method", "penalty",
+            "--modes", "10", "--quiet", "--out"]
+    subprocess.run(args + [str(tmp_path / "serial")], check=True, cwd=ROOT, timeout=600)
+    subprocess.run(_mpirun() + args[:-1] + ["--offline", "distributed", "--plots", "--out", str(tmp_path / "mpi")],
+                   check=True, cwd=ROOT, timeout=600, env=dict(os.environ))
+    a = np.loadtxt(tmp_path / "serial" / "frf.csv", delimiter=",", skiprows=1)
+    b = np.loadtxt(tmp_path / "mpi" / "frf.csv", delimiter=",", skiprows=1)
+    assert a[0, 0] == b[0, 0]
+    inside = b[:, 0] <= a[-1, 0]
+    assert inside.sum() >= b.shape[0] - 1
+    for c in range(2, a.shape[1]):
+        peak = a[:, c].max()
+        assert abs(a[0, c] - b[0, c]) <= 1e-8 * a[0, c], c
+        assert np.abs(CubicSpline(a[:, 0], a[:, c])(b[inside, 0]) - b[inside, c]).max() <= 1e-6 * peak, c
+        assert b[:, c].max() == pytest.approx(peak, rel=1e-4)
+    summary = json.loads((tmp_path / "mpi" / "summary.json").read_text())
+    assert summary["mpi_ranks"] == 2 and summary["rom"]["offline"] == "distributed"
+    assert summary["model"] == json.loads((tmp_path / "serial" / "summary.json").read_text())["model"]
+    assert (tmp_path / "serial" / "shape.npz").exists() and not (tmp_path / "mpi" / "shape.npz").exists()
+    assert len(list((tmp_path / "mpi").glob("interface_*.png"))) == 1
+
+
+@pytest.mark.parametrize("method,scene,match", [("cb", "lap3d", "--method cb needs the replicated"),
+                                                ("penalty", "beam2d", "for continuum scenes")])
+def test_offline_distributed_is_refused_where_it_does_not_apply(method, scene, match):
+    from jointfem.app import solve_scene
+    from jointfem.scene import SceneError
+
+    with pytest.raises(SceneError, match=match) as exc:
+        solve_scene(load_scene(ROOT / "demos" / f"{scene}.toml"), method=method,
+                    rom_options=RomOptions(offline="distributed"))
+    assert f"{scene}.toml: --offline = 'distributed'" in str(exc.value)

@@ -39,6 +39,9 @@ class RomOptions:
     tvd_kind: str = "eigen"
     interface_modes: int | None = None  # cc: characteristic constraint modes (default: half the boundary DOFs)
     release_after: int = 2  # penalty: converged points a pair must stay stuck before it leaves the active set
+    # penalty on a continuum scene: "replicated" (every rank holds K, M and the basis) or "distributed"
+    # (jointfem.fem.distributed: they stay in row blocks on the ranks; issue 17)
+    offline: str = "replicated"
 
 
 def check_modes(Phi: np.ndarray, M, what: str, *, rtol: float = 1e-6) -> None:
