@@ -2,7 +2,7 @@
 PY := .venv/bin/python
 MPIRUN := mpirun $(if $(filter 0,$(shell id -u)),--allow-run-as-root) --oversubscribe
 
-.PHONY: setup demo test test-trixie test-fast bench bench-corners bench-scaling bench-online bench-harmonics bench-friction bench-friction-fine bench-exact bench-stability bench-nma bench-preload brb paper validate clean
+.PHONY: setup demo test test-trixie test-fast bench bench-corners bench-scaling bench-scaling-distributed bench-online bench-harmonics bench-friction bench-friction-fine bench-exact bench-stability bench-nma bench-preload brb paper validate clean
 
 setup:
 	@bash tools/setup.sh
@@ -39,6 +39,11 @@ bench-corners: setup
 # of 500k DOFs (docs/benchmarks_scaling.md, docs/img/scaling.png; docs/scaling.md reads them; 16 min)
 bench-scaling: setup
 	$(PY) benchmarks/scaling.py --out docs/benchmarks_scaling.md
+
+# issue 17's distributed offline stage: the same laws with K, M and the static modes kept in row blocks
+# (docs/benchmarks_scaling_distributed.md, docs/img/scaling_distributed.png; a model of 525k DOFs)
+bench-scaling-distributed: setup
+	$(PY) benchmarks/scaling.py --distributed --out docs/benchmarks_scaling_distributed.md
 
 # issue 17's online scaling: one Newton iteration of the penalty ROM, CB and the exact condensation at
 # a stick-slip state against DOFs and pairs (docs/benchmarks_online.md, docs/img/online.png). Checked
