@@ -2,7 +2,7 @@
 PY := .venv/bin/python
 MPIRUN := mpirun $(if $(filter 0,$(shell id -u)),--allow-run-as-root) --oversubscribe
 
-.PHONY: setup demo test test-trixie test-fast bench bench-corners bench-scaling bench-scaling-distributed bench-online bench-harmonics bench-friction bench-friction-fine bench-exact bench-stability bench-nma bench-preload brb paper validate clean
+.PHONY: setup demo test test-trixie test-fast bench bench-corners bench-scaling bench-scaling-distributed bench-online bench-sweep500 bench-harmonics bench-friction bench-friction-fine bench-exact bench-stability bench-nma bench-preload brb paper validate clean
 
 setup:
 	@bash tools/setup.sh
@@ -24,6 +24,12 @@ bench: setup
 	$(PY) benchmarks/bench.py --out docs/benchmarks.md
 	$(PY) benchmarks/nma.py --out docs/benchmarks_nma.md
 	$(PY) demos/brb.py --out docs
+	$(PY) benchmarks/sweep_500.py --out docs/benchmarks_sweep500.md
+
+# issue 17's 525-pair joint (100k DOFs): the penalty ROM's sweep of a stick-slip level to completion,
+# set against Craig-Bampton's cost per Newton iteration (docs/benchmarks_sweep500.md; also in make bench)
+bench-sweep500: setup
+	$(PY) benchmarks/sweep_500.py --out docs/benchmarks_sweep500.md
 
 # issue 16's Brake-Reuss beam: free-free on its supports, the static preload of its three bolts, the
 # mode-1 backbone and the FRF at three levels, the penalty ROM against the exact condensation
@@ -46,8 +52,7 @@ bench-scaling-distributed: setup
 	$(PY) benchmarks/scaling.py --distributed --out docs/benchmarks_scaling_distributed.md
 
 # issue 17's online scaling: one Newton iteration of the penalty ROM, CB and the exact condensation at
-# a stick-slip state against DOFs and pairs (docs/benchmarks_online.md, docs/img/online.png). Checked
-# with --quick only: not yet run in full, no results recorded (2026-12-05)
+# a stick-slip state against DOFs and pairs (docs/benchmarks_online.md, docs/img/online.png)
 bench-online: setup
 	$(PY) benchmarks/online_scaling.py --out docs/benchmarks_online.md
 

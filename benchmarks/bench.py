@@ -306,6 +306,10 @@ OTHER = [
      "fitted slopes and peak memory per rank, a 500k-DOF model (docs/scaling.md reads them)"),
     ("docs/benchmarks_scaling_distributed.md", "make bench-scaling-distributed", "the same for the distributed "
      "offline stage (nothing model-sized gathered), and a 525k-DOF model"),
+    ("docs/benchmarks_online.md", "make bench-online", "one Newton iteration of the penalty ROM, CB and the exact "
+     "condensation at a stick-slip state, against DOFs and pairs, fitted slopes"),
+    ("docs/benchmarks_sweep500.md", "make bench-sweep500", "the penalty ROM's sweep of the 525-pair joint (100k DOFs) "
+     "at a stick-slip level, against CB's cost per Newton iteration; also part of make bench"),
     ("docs/benchmarks_harmonics.md", "make bench-harmonics", "the beam at 3 N against the number of harmonics, H = 3 to 41"),
     ("docs/benchmarks_stability.md", "make bench-stability", "the beam's stability at a converged H, against time integration"),
     ("docs/benchmarks_peaks.md", "python benchmarks/peaks_cost.py", "the cost of located peaks and of stability"),

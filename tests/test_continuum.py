@@ -410,6 +410,27 @@ def _mpirun():
     return cmd
 
 
+def same_curve(serial: Path, other: Path):
+    """Assert that the FRF in folder ``other`` lies on the one in ``serial``: the same first point to
+    1e-8, every point on a cubic spline through the serial points to 1e-6 of the peak, the same peak
+    to 1e-4 (the points' omegas differ: see test_mpi_two_ranks_equal_serial).  Returns both tables."""
+    from scipy.interpolate import CubicSpline
+
+    a = np.loadtxt(serial / "frf.csv", delimiter=",", skiprows=1)
+    b = np.loadtxt(other / "frf.csv", delimiter=",", skiprows=1)
+    assert a[0, 0] == b[0, 0]
+    # each sweep ends at its own first step past omega_end, so their last omegas differ by a hair
+    # either way (5e-8 rad/s on one machine); the spline is compared where it interpolates
+    inside = b[:, 0] <= a[-1, 0]
+    assert inside.sum() >= b.shape[0] - 1
+    for c in range(2, a.shape[1]):
+        peak = a[:, c].max()
+        assert abs(a[0, c] - b[0, c]) <= 1e-8 * a[0, c], c
+        assert np.abs(CubicSpline(a[:, 0], a[:, c])(b[inside, 0]) - b[inside, c]).max() <= 1e-6 * peak, c
+        assert b[:, c].max() == pytest.approx(peak, rel=1e-4)
+    return a, b
+
+
 @pytest.mark.slow
 def test_mpi_two_ranks_equal_serial(tmp_path):
     """`mpirun -n 2 python -m jointfem frf` (distributed assembly, SLEPc and MUMPS) gives the
@@ -435,21 +456,9 @@ def test_mpi_two_ranks_equal_serial(tmp_path):
     # spline through the serial points, evaluated at the MPI omegas (at most 0.02 rad/s from a
     # serial point, against steps of 0.6 rad/s or more), matches to 1e-6 of the peak (measured 2e-7,
     # while the points' own omegas drift by up to 1e-5 relative along the branch).
-    from scipy.interpolate import CubicSpline
-
-    a = np.loadtxt(tmp_path / "serial" / "frf.csv", delimiter=",", skiprows=1)
-    b = np.loadtxt(tmp_path / "mpi" / "frf.csv", delimiter=",", skiprows=1)
-    # both sweeps cover the range: each ends at its own first step past omega_end (1800 rad/s), so
-    # their last omegas differ by a hair either way (5e-8 rad/s on one machine); the spline is
-    # compared where it interpolates
-    assert a[0, 0] == b[0, 0] and min(a[-1, 0], b[-1, 0]) >= 1800.0
-    inside = b[:, 0] <= a[-1, 0]
-    assert inside.sum() >= b.shape[0] - 1
-    for c in range(2, a.shape[1]):
-        peak = a[:, c].max()
-        assert abs(a[0, c] - b[0, c]) <= 1e-8 * a[0, c], c
-        assert np.abs(CubicSpline(a[:, 0], a[:, c])(b[inside, 0]) - b[inside, c]).max() <= 1e-6 * peak, c
-        assert b[:, c].max() == pytest.approx(peak, rel=1e-4)
+    a, _ = same_curve(tmp_path / "serial", tmp_path / "mpi")
+    # both sweeps cover the range: each ends at its own first step past omega_end (1800 rad/s)
+    assert min(a[-1, 0], np.loadtxt(tmp_path / "mpi" / "frf.csv", delimiter=",", skiprows=1)[-1, 0]) >= 1800.0
     import json
     sa = json.loads((tmp_path / "mpi" / "summary.json").read_text())
     assert sa["mpi_ranks"] == 2

@@ -17,6 +17,7 @@ from jointfem.harmonics import Harmonics
 from jointfem.rom.common import RomOptions
 from jointfem.rom.penalty import PenaltyROM
 from jointfem.scene import load_scene, parse_scene
+from test_continuum import _mpirun, same_curve
 
 ROOT = Path(__file__).resolve().parents[1]
 OMEGAS = [1690.0, 1700.0, 1710.0, 1720.0]  # rad/s: around the stuck 2nd bending mode (1707.0 on the 10 mm mesh)
@@ -43,13 +44,6 @@ def _reference(spec):
     h = Harmonics(3, 128)
     nonlinear = {str(om): solve_at(rom, om, h) for om in OMEGAS}
     return rom, linear, nonlinear
-
-
-def _mpirun():
-    cmd = ["mpirun", "--oversubscribe", "-n", "2"]
-    if hasattr(os, "geteuid") and os.geteuid() == 0:
-        cmd.insert(1, "--allow-run-as-root")
-    return cmd
 
 
 @pytest.mark.slow
@@ -144,23 +138,12 @@ def test_cli_offline_distributed_on_two_ranks_equals_serial(tmp_path):
     the serial replicated run (the same first point to 1e-8; every point on the serial curve to
     1e-6 of the peak, as tests/test_continuum.py compares MPI runs), pictures drawn, no deformed
     shape written (its basis is not gathered), the summary says which offline stage ran."""
-    from scipy.interpolate import CubicSpline
-
     args = [sys.executable, "-m", "jointfem", "frf", str(ROOT / "demos" / "lap3d.toml"), "--method", "penalty",
             "--modes", "10", "--quiet", "--out"]
     subprocess.run(args + [str(tmp_path / "serial")], check=True, cwd=ROOT, timeout=600)
     subprocess.run(_mpirun() + args[:-1] + ["--offline", "distributed", "--plots", "--out", str(tmp_path / "mpi")],
                    check=True, cwd=ROOT, timeout=600, env=dict(os.environ))
-    a = np.loadtxt(tmp_path / "serial" / "frf.csv", delimiter=",", skiprows=1)
-    b = np.loadtxt(tmp_path / "mpi" / "frf.csv", delimiter=",", skiprows=1)
-    assert a[0, 0] == b[0, 0]
-    inside = b[:, 0] <= a[-1, 0]
-    assert inside.sum() >= b.shape[0] - 1
-    for c in range(2, a.shape[1]):
-        peak = a[:, c].max()
-        assert abs(a[0, c] - b[0, c]) <= 1e-8 * a[0, c], c
-        assert np.abs(CubicSpline(a[:, 0], a[:, c])(b[inside, 0]) - b[inside, c]).max() <= 1e-6 * peak, c
-        assert b[:, c].max() == pytest.approx(peak, rel=1e-4)
+    same_curve(tmp_path / "serial", tmp_path / "mpi")
     summary = json.loads((tmp_path / "mpi" / "summary.json").read_text())
     assert summary["mpi_ranks"] == 2 and summary["rom"]["offline"] == "distributed"
     assert summary["model"] == json.loads((tmp_path / "serial" / "summary.json").read_text())["model"]
