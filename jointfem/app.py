@@ -108,10 +108,10 @@ def sweep_options(scene: Scene, *, stability: str = "auto") -> SweepOptions:
 
 @dataclass
 class SceneSolution:
-    """A solved scene: the physical model, its FRF, the model-building seconds and the ROM (None
-    at full order)."""
+    """A solved scene: the physical model (its ModelSummary where it stayed distributed), its FRF,
+    the model-building seconds and the ROM (None at full order)."""
 
-    structure: Structure
+    structure: "Structure | ModelSummary"
     frf: FrequencyResponse
     build_s: float
     rom: Reduction | None

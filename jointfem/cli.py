@@ -20,11 +20,10 @@ from .rom import METHODS, RomError, RomOptions
 from .scene import SceneError, load_scene
 
 
-def _rom_options(args) -> RomOptions:
+def _rom_options(args, *, offline: str = "replicated") -> RomOptions:
     if args.modes < 0 or args.tvd < 0:
         raise RomError(f"--modes = {args.modes} and --tvd = {args.tvd} must be >= 0")
-    return RomOptions(modes=args.modes, tvd=args.tvd, tvd_kind=args.tvd_kind,
-                      offline=getattr(args, "offline", "replicated"))
+    return RomOptions(modes=args.modes, tvd=args.tvd, tvd_kind=args.tvd_kind, offline=offline)
 
 
 def _tvd_kind_arg(parser) -> None:
@@ -41,7 +40,7 @@ def cmd_frf(args) -> int:
     out = Path(args.out) if args.out else Path("results") / scene.name
     t0 = time.perf_counter()
     root = parallel.is_root()
-    options = _rom_options(args)
+    options = _rom_options(args, offline=args.offline)
     resume = None
     if args.resume:
         out = Path(args.out) if args.out else Path(args.resume)
