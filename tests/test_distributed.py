@@ -87,13 +87,19 @@ def test_two_ranks_gather_no_model_sized_array_and_equal_serial(tmp_path):
     assert slipping >= 3
 
 
-def test_one_rank_equals_the_replicated_rom():
+@pytest.mark.parametrize("name", ["lap3d", "lap2d"])
+def test_one_rank_equals_the_replicated_rom(name):
     """Serially, the distributed code path builds the same ROM (frequencies to 1e-8, output FRF to
-    1e-8) from the PETSc matrices as the replicated one from the gathered scipy matrices, and its
-    reduced matrices cross nothing model-sized."""
+    1e-8; measured 1e-10 and 1e-9) from the PETSc matrices as the replicated one from the gathered
+    scipy matrices, and its reduced matrices cross nothing model-sized."""
     from jointfem.fem.distributed import create_distributed
 
-    spec = lap_spec(0.015, 1.0)
+    if name == "lap3d":
+        spec = lap_spec(0.015, 1.0)
+    else:  # the 2D demo as it is (720 free DOFs, 7 pairs)
+        data = copy.deepcopy(load_scene(ROOT / "demos" / "lap2d.toml").data)
+        data["mesh"].pop("file", None)
+        spec = parse_scene(data, "lap2d_distributed.toml").model
     ref = PenaltyROM(create_continuum(spec), RomOptions(modes=8))
     with linalg.gather_audit() as audit:
         model = create_distributed(spec)
@@ -102,11 +108,11 @@ def test_one_rank_equals_the_replicated_rom():
     assert rom.info["offline"] == "distributed" and rom.basis is None
     assert all(max(s, default=0) < model.n / 10 for _, s in audit)
     np.testing.assert_allclose(rom.natural_frequencies(8), ref.natural_frequencies(8), rtol=1e-8)
-    w = np.linspace(1500.0, 1900.0, 9)
-    for name, row in ref.structure.outputs.items():
+    w = np.linspace(1400.0, 1900.0, 11)
+    for out, row in ref.structure.outputs.items():
         X = ref.structure.linear_response(w) @ row
-        Xd = rom.structure.linear_response(w) @ rom.structure.outputs[name]
-        assert np.abs(Xd - X).max() <= 1e-8 * np.abs(X).max(), name
+        Xd = rom.structure.linear_response(w) @ rom.structure.outputs[out]
+        assert np.abs(Xd - X).max() <= 1e-8 * np.abs(X).max(), out
     # the pairs in the same order, at the same places, with the same laws
     np.testing.assert_allclose(rom.pair_coords, ref.pair_coords, atol=1e-12)
     np.testing.assert_allclose(rom.groups[0].group.pairs.stiffness, ref.groups[0].group.pairs.stiffness, rtol=1e-12)

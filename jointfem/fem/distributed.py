@@ -9,8 +9,8 @@ and zero rows of M: their eigenvalues are infinite, far from the shift-invert ta
 mode and static mode is zero there, so the reduced model is the one of the eliminated DOFs
 (tests/test_distributed.py checks it against the replicated model to 1e-8).
 
-Supported: the lap, bar and stack geometries with clamps, a uniform pressure and bolt patches on
-the interface (preload = "uniform").  The static preload solve, initial gaps and soft supports
+Supported: jointed geometries (lap, stack) with clamps, a uniform pressure and bolt patches on the
+interface (preload = "uniform"); checked against the replicated model on the 2D and 3D lap joints.  The static preload solve, initial gaps and soft supports
 still need the replicated model (jointfem.fem.continuum), and say so.
 """
 from __future__ import annotations
