@@ -65,6 +65,18 @@ class Links:
         return sp.csr_matrix(self.gap.T @ sp.diags(self.stiffness) @ self.gap)
 
 
+def pair_names(groups) -> tuple[str, ...]:
+    """A name per physical pair of the contact groups, in their order (``pair<i>`` where unnamed)."""
+    return tuple(nm for g in groups for nm in (g.names or [f"pair{i}" for i in range(g.pairs.num_pairs)]))
+
+
+def per_pair(groups, attr: str) -> np.ndarray | None:
+    """A per-pair attribute ("coords", "areas") of the contact groups, concatenated; None unless every
+    group has it."""
+    parts = [getattr(g, attr) for g in groups]
+    return np.concatenate(parts) if parts and all(x is not None for x in parts) else None
+
+
 @dataclass(frozen=True)
 class Structure:
     """M u'' + D u' + K u + sum_g G_g^T (f_g(G_g u) - f0_g) = Re[(fc - i fs) e^{i omega t}].
@@ -104,22 +116,17 @@ class Structure:
     @property
     def pair_names(self) -> tuple[str, ...]:
         """A name per physical pair, in the order of the contact groups (``pair<i>`` where unnamed)."""
-        return tuple(nm for g in self.contacts for nm in (g.names or [f"pair{i}" for i in range(g.pairs.num_pairs)]))
-
-    def _per_pair(self, attr: str) -> np.ndarray | None:
-        """A per-pair attribute of the contact groups, concatenated; None unless every group has it."""
-        parts = [getattr(g, attr) for g in self.contacts]
-        return np.concatenate(parts) if parts and all(x is not None for x in parts) else None
+        return pair_names(self.contacts)
 
     @property
     def pair_coords(self) -> np.ndarray | None:
         """Reference position per pair (num_pairs, 3), m; None unless every group has them."""
-        return self._per_pair("coords")
+        return per_pair(self.contacts, "coords")
 
     @property
     def pair_areas(self) -> np.ndarray | None:
         """Contact area per pair (num_pairs,), m^2; None unless every group has them."""
-        return self._per_pair("areas")
+        return per_pair(self.contacts, "areas")
 
     @property
     def K_lin(self) -> sp.csr_matrix:

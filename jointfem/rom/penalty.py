@@ -40,7 +40,7 @@ from ..hbm.forced import compute_rom_scales
 from ..hbm.problem import Evaluation, Layout, PointRecord, Problem, Scales, count_exponents, force_scale
 from ..hbm.residual import HBMResidual
 from ..linalg import Factorized, LinAlgError, RowBlocks, allreduce, eigen, eigen_rows, gram, solve_rows
-from ..models.structure import ContactGroup, Structure
+from ..models.structure import ContactGroup, Structure, pair_names, per_pair
 from .cms import trial_vector_derivatives
 from .common import ReducedModel, RomError, RomOptions, check_modes
 
@@ -202,9 +202,8 @@ class PenaltyROM(ReducedModel):
             m_rows = g.pairs.num_pairs * g.pairs.num_comp
             self.groups.append(_Group(g, first, GT[first:first + m_rows]))
             first += m_rows
-        every = Structure(K=sp.csr_matrix((0, 0)), M=sp.csr_matrix((0, 0)), D=sp.csr_matrix((0, 0)), fc=np.zeros(0),
-                          fs=np.zeros(0), contacts=tuple(physical))
-        self.pair_names, self.pair_coords, self.pair_areas = every.pair_names, every.pair_coords, every.pair_areas
+        self.pair_names = pair_names(physical)
+        self.pair_coords, self.pair_areas = per_pair(physical, "coords"), per_pair(physical, "areas")
         self._cache: dict[bytes, Structure] = {}
         stuck = self.structure_for(np.zeros(kc.size, bool))
         T = data.basis.local if data.basis.comm is None else None
