@@ -12,7 +12,8 @@ largest rank so far (getrusage ru_maxrss).  Rank 0 writes the JSON.
 --distributed: the distributed offline stage instead (jointfem.fem.distributed and the penalty
 ROM's row blocks, issue 17): no gather stage; contact includes K_lin; static and projection as
 PenaltyROM times them (the static modes with the contact stiffness, the projection also of M and
-the gap rows).  bench.py runs it serial and on
+the gap rows); --static-solver petsc solves the static modes by PETSc's MatMatSolve instead of
+MUMPS called directly (jointfem.mumps), to set the two side by side.  bench.py runs it serial and on
 2 ranks and records the speed-up per stage; scaling.py runs it over mesh sizes and pair counts.
 """
 from __future__ import annotations
@@ -38,7 +39,14 @@ def main(argv=None):
     ap.add_argument("--modes", type=int, default=20)
     ap.add_argument("--json", required=True)
     ap.add_argument("--distributed", action="store_true", help="the distributed offline stage (no gather)")
+    ap.add_argument("--static-solver", choices=("direct", "petsc"), default="direct",
+                    help="distributed stage's static modes: MUMPS called directly with sparse right-hand sides "
+                         "(jointfem.mumps, the default) or PETSc's MatMatSolve with dense ones (JOINTFEM_MUMPS=petsc)")
     args = ap.parse_args(argv)
+    if args.static_solver == "petsc":
+        import os
+
+        os.environ["JOINTFEM_MUMPS"] = "petsc"
     from mpi4py import MPI
 
     from jointfem import linalg
@@ -93,7 +101,7 @@ def _distributed(args, spec, comm, mark, t0, peak):
     if comm.rank == 0:
         tm, to = model.info["timings"], rom.info["offline_timings"]
         out = {"ranks": comm.size, "dofs": model.num_dofs, "pairs": int(model.info["num_pairs"]), "backend": "petsc",
-               "offline": "distributed", "size": args.size, "size_normal": args.size_normal,
+               "offline": "distributed", "static_solver": args.static_solver, "size": args.size, "size_normal": args.size_normal,
                "size_joint": args.size_joint, "reduced": int(rom.K.shape[0]),
                "finite": bool(np.isfinite(rom.K).all() and np.isfinite(rom.M).all()),
                "stages_s": {"mesh": tm["mesh_s"], "assembly": tm["assembly_s"], "gather": 0.0,

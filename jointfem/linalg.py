@@ -1,7 +1,7 @@
 """Sparse/dense linear algebra for the offline stage: scipy, or PETSc/SLEPc with MUMPS.
 
-Only this module, the mesh and the fem modules may touch an eigen- or linear-solver
-package directly.  Matrices arrive as scipy (replicated on every MPI rank); above
+Only this module (with jointfem.mumps, which it calls for MUMPS's own C interface), the mesh and
+the fem modules may touch an eigen- or linear-solver package directly.  Matrices arrive as scipy (replicated on every MPI rank); above
 ``SPARSE_PETSC`` DOFs, when petsc4py and slepc4py import, the eigenvalue problems
 (SLEPc Krylov-Schur, shift-invert, MUMPS) and the factorisations (PETSc KSP + MUMPS LU)
 run distributed over ``MPI.COMM_WORLD``: each rank hands PETSc its block of rows and
@@ -394,6 +394,9 @@ CHUNK = 256  # columns per block of the projections (bounds the extra memory)
 # right-hand sides, one rank: 10.6-14.8 s at 64, 15-17 s at 256, 25 s all at once; timing noise
 # about +-30 %)
 SOLVE_CHUNK = 64
+# columns per direct MUMPS solve with sparse right-hand sides (jointfem.mumps): bounds the solution
+# buffer (n_local x DIRECT_CHUNK); MUMPS blocks them itself (ICNTL(27))
+DIRECT_CHUNK = 256
 
 
 def _audit(kind: str, shape: tuple) -> None:
@@ -523,33 +526,65 @@ def eigen_rows(A, B, num: int, *, what: str, sigma: float = 0.0, comm=None) -> t
 
 
 def solve_rows(A, B, *, what: str, comm=None, symmetric: bool = True, chunk: int = SOLVE_CHUNK,
-               out: np.ndarray | None = None) -> RowBlocks:
+               out: np.ndarray | None = None, direct: bool | None = None) -> RowBlocks:
     """A^-1 B for a distributed PETSc matrix A and this rank's rows B (n_local, m) of the right-hand
-    sides (dense or scipy sparse): one MUMPS factorisation, then the solves by blocks of ``chunk``
-    columns (MatMatSolve with distributed dense right-hand sides, each block densified only while
-    it is solved); the solution stays in the same rows, written into ``out`` if given."""
+    sides (dense or scipy sparse); the solution stays in the same rows, written into ``out`` if
+    given (column blocks are contiguous if ``out`` is in Fortran order).
+
+    Sparse B of a symmetric positive definite A: MUMPS called directly (jointfem.mumps: sparse
+    right-hand sides on the host, the solution distributed, ``DIRECT_CHUNK`` columns per solve).
+    Otherwise (dense B, ``direct`` False, JOINTFEM_MUMPS=petsc, or jointfem.mumps unavailable
+    where ``direct`` was left to this function): one MUMPS factorisation through PETSc, then
+    MatMatSolve with distributed dense right-hand sides by blocks of ``chunk`` columns, each
+    densified only while it is solved."""
     from petsc4py import PETSc
 
-    ksp = _mumps_ksp(A, symmetric=symmetric)
-    try:
-        ksp.setUp()
-    except PETSc.Error as exc:
-        raise LinAlgError(f"{what} could not be factorised by MUMPS (error {exc.ierr}): singular? a substructure "
-                          f"without supports (rigid-body modes) cannot be factorised") from exc
-    factor = ksp.getPC().getFactorMatrix()
+    from . import mumps
+
     n = A.getSize()[0]
     r0, r1 = A.getOwnershipRange()
-    X = np.zeros(B.shape) if out is None else out
-    B = sp.csc_matrix(B) if sp.issparse(B) else B
-    for c in range(0, B.shape[1], chunk):
-        blk = B[:, c:c + chunk]
-        Bc = _dense(np.ascontiguousarray(blk.toarray() if sp.issparse(blk) else blk), n)
-        Xc = Bc.duplicate()
-        factor.matSolve(Bc, Xc)
-        X[:, c:c + chunk] = Xc.getDenseArray()
-        Bc.destroy()
-        Xc.destroy()
-    ksp.destroy()
+    X = np.zeros(B.shape, order="F") if out is None else out
+    reason = mumps.unavailable()
+    asked = direct is None  # chosen here, so PETSc's path may stand in
+    if direct is None:  # JOINTFEM_MUMPS=petsc keeps PETSc's MatMatSolve (for comparisons)
+        direct = sp.issparse(B) and symmetric and reason is None and os.environ.get("JOINTFEM_MUMPS") != "petsc"
+    factor = None
+    if direct:
+        if reason is not None or not (sp.issparse(B) and symmetric):
+            raise LinAlgError(f"{what}: a direct MUMPS solve needs sparse right-hand sides of a symmetric "
+                              f"matrix{'' if reason is None else ' and ' + reason}")
+        try:
+            factor = mumps.Cholesky(A, A.getComm().tompi4py(), what=what)
+        except mumps.MumpsUnavailable as exc:
+            if not asked:
+                raise LinAlgError(str(exc)) from exc
+        except mumps.MumpsError as exc:
+            raise LinAlgError(str(exc)) from exc
+    if factor is not None:
+        try:
+            factor.solve_sparse(B, X, chunk=DIRECT_CHUNK, audit=_audit)
+        except mumps.MumpsError as exc:
+            raise LinAlgError(str(exc)) from exc
+        finally:
+            factor.destroy()
+    else:  # PETSc's interface (also where the direct path was chosen by default but is unavailable)
+        ksp = _mumps_ksp(A, symmetric=symmetric)
+        try:
+            ksp.setUp()
+        except PETSc.Error as exc:
+            raise LinAlgError(f"{what} could not be factorised by MUMPS (error {exc.ierr}): singular? a substructure "
+                              f"without supports (rigid-body modes) cannot be factorised") from exc
+        factor = ksp.getPC().getFactorMatrix()
+        B = sp.csc_matrix(B) if sp.issparse(B) else B
+        for c in range(0, B.shape[1], chunk):
+            blk = B[:, c:c + chunk]
+            Bc = _dense(np.ascontiguousarray(blk.toarray() if sp.issparse(blk) else blk), n)
+            Xc = Bc.duplicate()
+            factor.matSolve(Bc, Xc)
+            X[:, c:c + chunk] = Xc.getDenseArray()
+            Bc.destroy()
+            Xc.destroy()
+        ksp.destroy()
     bad = np.array([0.0 if np.all(np.isfinite(X)) else 1.0])
     if (bad if comm is None else allreduce(comm, bad))[0] > 0:
         raise LinAlgError(f"{what} is singular: the MUMPS solution is not finite (a substructure without supports?)")

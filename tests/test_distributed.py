@@ -64,10 +64,21 @@ def test_two_ranks_gather_no_model_sized_array_and_equal_serial(tmp_path):
     n, J, q = res["n"], rom.num_comp, rom.K.shape[0]
     assert res["ranks"] == 2 and res["free_dofs"] == rom.full_size == 7560 and n == 7686
     assert 0 < res["rows"][1] - res["rows"][0] < n  # this rank held only part of the rows
-    # the audit: what crossed, by shape; the largest is the gap rows of the basis, J x q
-    shapes = [tuple(s) for _, s in res["audit"]]
-    assert shapes and max(max(s) for s in shapes if s) <= max(J, q) < n / 40
-    assert all(kind in ("allreduce", "allgather") for kind, _ in res["audit"])
+    # the audit: what crossed, by kind and shape.  Reductions and gathers of reduced data: the
+    # largest is the gap rows of the basis, J x q
+    audit = [(kind, tuple(s)) for kind, s in res["audit"]]
+    assert {kind for kind, _ in audit} == {"allreduce", "allgather", "gather", "redistribute"}
+    reduced = [s for kind, s in audit if kind in ("allreduce", "allgather")]
+    assert max(max(s) for s in reduced if s) <= max(J, q) < n / 40
+    # the static modes' right-hand sides reach MUMPS's host as their nonzeros: a component of a 3D
+    # pair reads at most the 3 + 3 DOFs of its two nodes
+    sent = [s for kind, s in audit if kind == "gather"]
+    assert len(sent) == 1 and 2 * J <= sent[0][0] <= 6 * J
+    # and their solution goes from where MUMPS holds it to the ranks that own its rows: no rank
+    # receives more than its own rows (rank 0's record; what rank 1 receives is the rest)
+    own = res["rows"][1] - res["rows"][0]
+    moved = [s for kind, s in audit if kind == "redistribute"]
+    assert moved and all(s[0] <= own < n for s in moved)
     old = [tuple(s) for _, s in res["replicated_audit"]]
     assert any(s and max(s) >= n for s in old)  # K, M and the modes gathered whole
     # the results, against the serial replicated ROM

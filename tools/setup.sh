@@ -20,7 +20,9 @@ esac
 # reference BLAS made the dense algebra of the ROMs 5x slower (a 420x420 solve: 14 ms against 2.9 ms).
 # libegl1 libegl-mesa0 libgl1-mesa-dri: the off-screen renderer that pip's VTK wheel loads (EGL on Mesa's
 # software rasteriser); without them a picture segfaults (the wheel finds no X, EGL or OSMesa).
-APT_PKGS="python3-dolfinx python3-petsc4py python3-slepc4py python3-gmsh python3-scipy python3-mpi4py python3-venv mpi-default-bin libopenblas0-pthread libegl1 libegl-mesa0 libgl1-mesa-dri"
+# libmumps-dev: dmumps_c.h, which jointfem.mumps reads to call MUMPS directly (PETSc's development
+# package brings it already; named so that it is not left to that).
+APT_PKGS="python3-dolfinx python3-petsc4py python3-slepc4py python3-gmsh python3-scipy python3-mpi4py python3-venv mpi-default-bin libopenblas0-pthread libegl1 libegl-mesa0 libgl1-mesa-dri libmumps-dev"
 missing=""
 for p in $APT_PKGS; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing="$missing $p"

@@ -131,7 +131,8 @@ def _offline_distributed(model, options: RomOptions) -> PenaltyData:
         w2, Phi = eigen_rows(model.K_lin, model.M, options.modes, what="penalty: stuck structure", comm=comm)
         m = Phi.num_cols
         check_modes(np.eye(m), gram(model.M, Phi), "penalty: the stuck vibration modes")
-        T = RowBlocks(np.empty((Phi.local.shape[0], m + kc.size)), model.n, Phi.offset, comm)
+        # Fortran order: each block of static modes is written, and later read, as contiguous columns
+        T = RowBlocks(np.empty((Phi.local.shape[0], m + kc.size), order="F"), model.n, Phi.offset, comm)
         T.local[:, :m] = Phi.local
         del Phi
         t1 = time.perf_counter()

@@ -1,0 +1,221 @@
+"""MUMPS through its own C interface, for the one solve PETSc 3.18's interface makes costly: many
+sparse right-hand sides with the solution left distributed.
+
+The penalty ROM's static modes are K_lin^-1 G^T Kc: one right-hand side per contact component, two
+nonzeros each.  PETSc's MatMatSolve hands MUMPS dense right-hand sides (every front visited in
+the forward sweep) and, in parallel, builds and sorts a scatter of the whole distributed solution
+at every call (measured on 100,548 DOFs and 1575 right-hand sides: PetscSortIntWithArray and page
+zeroing took most of the 2-rank solve, which was slower than the serial one).  Its sparse path
+(MatMatTransposeSolve) centralises the solution.  Called directly, MUMPS takes the sparse
+right-hand sides on the host (ICNTL(20) = 1: O(pairs) data, so its forward sweep visits only the
+fronts above the interface) and leaves the solution distributed (ICNTL(21) = 1), which is then
+sent to the rows each rank owns in PETSc's layout.
+
+The structure DMUMPS_STRUC_C is read from the installed header (dmumps_c.h, Debian's
+libmumps-dev, which PETSc's development package brings) by cffi, so it matches the installed
+library's version.  ``unavailable()`` says why this path cannot be used (the caller then keeps
+PETSc's MatMatSolve).  Part of the linear-algebra layer: jointfem.linalg calls it.
+"""
+from __future__ import annotations
+
+import ctypes.util
+import functools
+import re
+from pathlib import Path
+
+import numpy as np
+import scipy.sparse as sp
+
+HEADER_DIRS = (Path("/usr/include"), Path("/usr/include/mumps"), Path("/usr/local/include"))
+JOB_INIT, JOB_END, JOB_ANALYSE_FACTOR, JOB_SOLVE = -1, -2, 4, 3
+
+
+class MumpsError(RuntimeError):
+    """MUMPS reported an error (its INFOG(1) < 0)."""
+
+
+class MumpsUnavailable(MumpsError):
+    """MUMPS cannot be called directly here (no header, no library, or a structure that does not
+    match the library's)."""
+
+
+@functools.lru_cache(maxsize=1)
+def _interface():
+    """(ffi, lib, int dtype) for dmumps_c, or a string saying why there is none."""
+    try:
+        import cffi
+    except ImportError:
+        return "cffi is not installed"
+    header = next((d / "dmumps_c.h" for d in HEADER_DIRS if (d / "dmumps_c.h").is_file()), None)
+    if header is None:
+        return "dmumps_c.h not found (Debian package libmumps-dev) in " + ", ".join(map(str, HEADER_DIRS))
+    text = header.read_text()
+    found = re.search(r"typedef\s+struct\s*\{(.*?)\}\s*DMUMPS_STRUC_C\s*;", text, re.S)
+    maxlen = re.search(r"#\s*define\s+MUMPS_VERSION_MAX_LEN\s+(\d+)", text)
+    version = re.search(r'#\s*define\s+MUMPS_VERSION\s+"([^"]+)"', text)
+    if found is None or maxlen is None:
+        return f"{header}: DMUMPS_STRUC_C or MUMPS_VERSION_MAX_LEN not found"
+    intdef = header.parent / "mumps_int_def.h"
+    int64 = intdef.is_file() and re.search(r"^\s*#\s*define\s+MUMPS_INTSIZE64", intdef.read_text(), re.M)
+    body = re.sub(r"/\*.*?\*/", "", found.group(1), flags=re.S)
+    if "#" in body:
+        return f"{header}: preprocessor lines inside DMUMPS_STRUC_C, not parsed"
+    cint = "int64_t" if int64 else "int"
+    for macro, ctype in (("MUMPS_VERSION_MAX_LEN", maxlen.group(1)), ("MUMPS_INT8", "int64_t"),
+                         ("MUMPS_INT", cint), ("DMUMPS_COMPLEX", "double"), ("DMUMPS_REAL", "double")):
+        body = re.sub(rf"\b{macro}\b", ctype, body)
+    library = ctypes.util.find_library("dmumps")
+    if library is None:
+        return "libdmumps not found"
+    ffi = cffi.FFI()
+    try:
+        ffi.cdef("typedef struct {" + body + "} DMUMPS_STRUC_C;\nvoid dmumps_c(DMUMPS_STRUC_C *);")
+        lib = ffi.dlopen(library)
+    except Exception as exc:  # cffi's parser or the loader: say what, keep PETSc's path
+        return f"{header} with {library}: {exc}"
+    return ffi, lib, (np.int64 if int64 else np.int32), "int64_t" if int64 else "int", \
+        version.group(1) if version else None
+
+
+def unavailable() -> str | None:
+    """None if MUMPS can be called directly here, else the reason."""
+    found = _interface()
+    return found if isinstance(found, str) else None
+
+
+class Cholesky:
+    """The factorisation of a symmetric positive definite distributed PETSc matrix by MUMPS (its
+    upper triangle handed over as each rank's rows: ICNTL(18) = 3), for sparse right-hand sides.
+    Collective over ``comm`` (mpi4py); call ``destroy()`` on every rank."""
+
+    def __init__(self, A, comm, *, what: str):
+        found = _interface()
+        if isinstance(found, str):
+            raise MumpsUnavailable(f"{what}: MUMPS cannot be called directly: {found}")
+        self._ffi, self._lib, self._int, self._cint, version = found
+        self.what, self.comm = what, comm
+        self.n = A.getSize()[0]
+        self.r0, self.r1 = A.getOwnershipRange()
+        indptr, cols, vals = A.getValuesCSR()
+        rows = np.repeat(np.arange(self.r0, self.r1), np.diff(indptr))
+        upper = cols >= rows
+        self._keep = [np.ascontiguousarray(rows[upper] + 1, dtype=self._int),
+                      np.ascontiguousarray(cols[upper] + 1, dtype=self._int),
+                      np.ascontiguousarray(vals[upper], dtype=float)]
+        ffi = self._ffi
+        # the structure with room to spare behind it, so that a library whose structure were larger
+        # than the header's could not write past it; the version MUMPS writes back checks the layout
+        self._buf = ffi.new("char[]", ffi.sizeof("DMUMPS_STRUC_C") + 65536)
+        self._id = ffi.cast("DMUMPS_STRUC_C *", self._buf)
+        self._id.comm_fortran = comm.py2f()
+        self._id.par, self._id.sym = 1, 1  # the host works too; symmetric positive definite
+        self._call(JOB_INIT, "initialisation")
+        got = ffi.string(self._id.version_number).decode(errors="replace").strip()
+        if version is not None and got != version:
+            raise MumpsUnavailable(f"{what}: the MUMPS library reports version {got!r} in the structure read from "
+                                   f"its header (version {version!r}): the layouts differ, not called directly")
+        for k, v in ((1, -1), (2, -1), (3, -1), (4, 0), (18, 3)):  # silent; distributed assembled input
+            self._id.icntl[k - 1] = v
+        self._id.n = self.n
+        self._id.nnz_loc = self._keep[0].size
+        self._id.irn_loc = self._ptr(self._keep[0])
+        self._id.jcn_loc = self._ptr(self._keep[1])
+        self._id.a_loc = self._ptr(self._keep[2])
+        self._call(JOB_ANALYSE_FACTOR, "analysis and factorisation")
+
+    def _ptr(self, a: np.ndarray):
+        return self._ffi.from_buffer(("double" if a.dtype == float else self._cint) + "[]", a)
+
+    def _call(self, job: int, stage: str) -> None:
+        self._id.job = job
+        self._lib.dmumps_c(self._id)
+        info = int(self._id.infog[0])
+        if info < 0:
+            hint = " (the matrix is singular or not positive definite: a substructure without supports?)" \
+                if info in (-10, -40) else ""
+            raise MumpsError(f"{self.what}: MUMPS {stage} failed, INFOG(1) = {info}, INFOG(2) = "
+                             f"{int(self._id.infog[1])}{hint}")
+
+    def solve_sparse(self, B_local: sp.spmatrix, out: np.ndarray, *, chunk: int, audit=None) -> None:
+        """A^-1 B into ``out`` (this rank's rows, n_local x m), B given as this rank's rows
+        (sparse, n_local x m).  B's nonzeros go to the host (what crosses: nnz(B) entries); each
+        block of ``chunk`` columns is solved with its solution distributed as MUMPS maps it, then
+        sent to the ranks that own the rows.  ``audit(kind, shape)`` is told what crosses."""
+        comm, ffi, idd = self.comm, self._ffi, self._id
+        B = sp.coo_matrix(B_local)
+        m = B.shape[1]
+        parts = [(B.row + self.r0, B.col, B.data)]
+        if comm.size > 1:
+            parts = comm.gather(parts[0], root=0)
+        if comm.rank == 0:  # the right-hand sides by columns (compressed column storage, 1-based)
+            rows, cols, vals = (np.concatenate(x) for x in zip(*parts))
+            if audit and comm.size > 1:
+                audit("gather", (rows.size, 3))
+            Bc = sp.csc_matrix((vals, (rows, cols)), shape=(self.n, m))
+            Bc.sum_duplicates()
+            Bc.sort_indices()
+        lsol = int(idd.info[22])  # INFO(23): the solution entries this rank holds
+        sol = np.empty(lsol * min(chunk, m))
+        isol = np.empty(lsol, dtype=self._int)
+        idd.icntl[19], idd.icntl[20] = 1, 1  # ICNTL(20) = 1: sparse right-hand sides; ICNTL(21) = 1
+        idd.lsol_loc = lsol
+        idd.sol_loc, idd.isol_loc = self._ptr(sol), self._ptr(isol)
+        idd.lrhs = self.n
+        route = None
+        for c in range(0, m, chunk):
+            e = min(c + chunk, m)
+            if comm.rank == 0:
+                blk = Bc[:, c:e]
+                keep = (np.ascontiguousarray(blk.indptr + 1, dtype=self._int),
+                        np.ascontiguousarray(blk.indices + 1, dtype=self._int), np.ascontiguousarray(blk.data))
+                idd.irhs_ptr, idd.irhs_sparse, idd.rhs_sparse = (self._ptr(a) for a in keep)
+                idd.nz_rhs = keep[2].size
+            idd.nrhs = e - c
+            self._call(JOB_SOLVE, f"solve of right-hand sides {c} to {e - 1}")
+            if route is None:
+                route = self._route(isol - 1, audit)
+            solved = sol[:lsol * (e - c)].reshape(e - c, lsol)  # one row per right-hand side
+            out[:, c:e] = self._deliver(solved, route, audit).T
+        if comm.rank == 0:
+            idd.irhs_ptr = idd.irhs_sparse = idd.rhs_sparse = ffi.NULL
+        idd.sol_loc = idd.isol_loc = ffi.NULL
+
+    def _route(self, held: np.ndarray, audit):
+        """Where each solution entry this rank holds goes: (order to send, counts to each rank,
+        counts from each rank, where the received entries land in this rank's rows)."""
+        comm = self.comm
+        if comm.size == 1:
+            land = np.empty_like(held)
+            land[held - self.r0] = np.arange(held.size)
+            return None, None, None, land
+        ends = np.array(comm.allgather(self.r1))
+        owner = np.searchsorted(ends, held, side="right")
+        order = np.argsort(owner, kind="stable")
+        send = np.bincount(owner, minlength=comm.size)
+        recv = np.array(comm.alltoall(send.tolist()))
+        got = np.empty(int(recv.sum()), dtype=np.int64)
+        comm.Alltoallv([np.ascontiguousarray(held[order], dtype=np.int64), send], [got, recv])
+        if audit:
+            audit("redistribute", (got.size,))
+        land = np.empty(self.r1 - self.r0, dtype=np.int64)
+        land[got - self.r0] = np.arange(got.size)
+        return order, send, recv, land
+
+    def _deliver(self, solved: np.ndarray, route, audit) -> np.ndarray:
+        """(k, n_local), C order: the solved entries (k, lsol) moved to this rank's rows (np.take
+        keeps the result row-major, so that its transpose fills contiguous columns)."""
+        order, send, recv, land = route
+        if order is None:
+            return np.take(solved, land, axis=1)
+        k = solved.shape[0]
+        got = np.empty((int(recv.sum()), k))
+        self.comm.Alltoallv([np.take(solved, order, axis=1).T.copy(), send * k], [got, recv * k])
+        if audit:
+            audit("redistribute", got.shape)
+        return np.take(np.ascontiguousarray(got.T), land, axis=1)
+
+    def destroy(self) -> None:
+        if self._id is not None:
+            self._id.irn_loc = self._id.jcn_loc = self._id.a_loc = self._ffi.NULL
+            self._call(JOB_END, "release")
+            self._id = None
