@@ -120,9 +120,24 @@ def _mumps_ksp(A, *, symmetric: bool):
     return _use_mumps(ksp, symmetric=symmetric)
 
 
-def _eps_solve(A, B, num: int, what: str, sigma: float):
+class _FactorPC:
+    """A PETSc preconditioner (type python) that applies A^-1 by a factorisation already made
+    (jointfem.mumps.Cholesky): SLEPc's shift-invert at 0 then needs no factorisation of its own."""
+
+    def __init__(self, factor):
+        self.factor = factor
+
+    def apply(self, pc, x, y):
+        out = np.empty(x.getLocalSize())
+        self.factor.solve_dense(x.getArray(readonly=True), out)
+        y.setArray(out)
+
+
+def _eps_solve(A, B, num: int, what: str, sigma: float, factor=None):
     """SLEPc's Krylov-Schur with shift-invert (MUMPS) on the distributed pencil (A, B): the solver and
-    the indices of its ``num`` lowest converged eigenpairs, with their eigenvalues."""
+    the indices of its ``num`` lowest converged eigenpairs, with their eigenvalues.  ``factor``: a
+    factorisation of A (jointfem.mumps.Cholesky) that shift-invert at sigma = 0 uses instead of
+    factorising A again."""
     from slepc4py import SLEPc
 
     eps = SLEPc.EPS().create(_comm())
@@ -135,7 +150,15 @@ def _eps_solve(A, B, num: int, what: str, sigma: float):
     st = eps.getST()
     st.setType("sinvert")
     st.setShift(sigma)
-    _use_mumps(st.getKSP(), symmetric=True)
+    if factor is None:
+        _use_mumps(st.getKSP(), symmetric=True)
+    else:
+        if sigma != 0.0:
+            raise ValueError(f"{what}: a factorisation of A serves the shift 0 only, not {sigma}")
+        ksp = st.getKSP()
+        ksp.setType("preonly")
+        ksp.getPC().setType("python")
+        ksp.getPC().setPythonContext(_FactorPC(factor))
     eps.solve()
     nconv = eps.getConverged()
     if nconv < num:
@@ -493,11 +516,12 @@ def gram(A, T: RowBlocks, *, chunk: int = CHUNK, cols: int | None = None) -> np.
     return np.triu(out) + np.triu(out, 1).T
 
 
-def eigen_rows(A, B, num: int, *, what: str, sigma: float = 0.0, comm=None) -> tuple[np.ndarray, RowBlocks]:
+def eigen_rows(A, B, num: int, *, what: str, sigma: float = 0.0, comm=None, factor=None) -> tuple[np.ndarray, RowBlocks]:
     """eigen() of a distributed PETSc pencil, the modes left in row blocks: (w2 ascending, Phi)
     mass-normalised, each signed so that its entry of largest magnitude is positive (the first
-    such row where several tie), as eigen() does."""
-    eps, order, w2 = _eps_solve(A, B, num, what, sigma)
+    such row where several tie), as eigen() does.  ``factor``: A already factorised
+    (direct_factor), for sigma = 0."""
+    eps, order, w2 = _eps_solve(A, B, num, what, sigma, factor)
     vr, Bv = A.createVecs()
     r0, r1 = vr.getOwnershipRange()
     n = vr.getSize()
@@ -525,14 +549,37 @@ def eigen_rows(A, B, num: int, *, what: str, sigma: float = 0.0, comm=None) -> t
     return w2, RowBlocks(Phi * sign, n, r0, comm)
 
 
+def direct_factor(A, *, what: str, required: bool = False):
+    """A symmetric positive definite distributed PETSc matrix factorised by MUMPS called directly
+    (jointfem.mumps.Cholesky, for solve_rows' sparse right-hand sides and eigen_rows at sigma = 0),
+    or None where that path is not taken: JOINTFEM_MUMPS=petsc, or jointfem.mumps unavailable here
+    (then LinAlgError if ``required``).  The caller destroys it."""
+    from . import mumps
+
+    reason = mumps.unavailable()
+    if reason is not None or (not required and os.environ.get("JOINTFEM_MUMPS") == "petsc"):
+        if required:
+            raise LinAlgError(f"{what}: MUMPS cannot be called directly: {reason}")
+        return None
+    try:
+        return mumps.Cholesky(A, A.getComm().tompi4py(), what=what, audit=_audit)
+    except mumps.MumpsUnavailable as exc:
+        if required:
+            raise LinAlgError(str(exc)) from exc
+        return None
+    except mumps.MumpsError as exc:
+        raise LinAlgError(str(exc)) from exc
+
+
 def solve_rows(A, B, *, what: str, comm=None, symmetric: bool = True, chunk: int = SOLVE_CHUNK,
-               out: np.ndarray | None = None, direct: bool | None = None) -> RowBlocks:
+               out: np.ndarray | None = None, direct: bool | None = None, factor=None) -> RowBlocks:
     """A^-1 B for a distributed PETSc matrix A and this rank's rows B (n_local, m) of the right-hand
     sides (dense or scipy sparse); the solution stays in the same rows, written into ``out`` if
     given (column blocks are contiguous if ``out`` is in Fortran order).
 
     Sparse B of a symmetric positive definite A: MUMPS called directly (jointfem.mumps: sparse
-    right-hand sides on the host, the solution distributed, ``DIRECT_CHUNK`` columns per solve).
+    right-hand sides on the host, the solution distributed, ``DIRECT_CHUNK`` columns per solve),
+    by ``factor`` if given (direct_factor(A)), else by a factorisation made and released here.
     Otherwise (dense B, ``direct`` False, JOINTFEM_MUMPS=petsc, or jointfem.mumps unavailable
     where ``direct`` was left to this function): one MUMPS factorisation through PETSc, then
     MatMatSolve with distributed dense right-hand sides by blocks of ``chunk`` columns, each
@@ -544,29 +591,20 @@ def solve_rows(A, B, *, what: str, comm=None, symmetric: bool = True, chunk: int
     n = A.getSize()[0]
     r0, r1 = A.getOwnershipRange()
     X = np.zeros(B.shape, order="F") if out is None else out
-    reason = mumps.unavailable()
-    asked = direct is None  # chosen here, so PETSc's path may stand in
-    if direct is None:  # JOINTFEM_MUMPS=petsc keeps PETSc's MatMatSolve (for comparisons)
-        direct = sp.issparse(B) and symmetric and reason is None and os.environ.get("JOINTFEM_MUMPS") != "petsc"
-    factor = None
-    if direct:
-        if reason is not None or not (sp.issparse(B) and symmetric):
-            raise LinAlgError(f"{what}: a direct MUMPS solve needs sparse right-hand sides of a symmetric "
-                              f"matrix{'' if reason is None else ' and ' + reason}")
-        try:
-            factor = mumps.Cholesky(A, A.getComm().tompi4py(), what=what)
-        except mumps.MumpsUnavailable as exc:
-            if not asked:
-                raise LinAlgError(str(exc)) from exc
-        except mumps.MumpsError as exc:
-            raise LinAlgError(str(exc)) from exc
+    fits = sp.issparse(B) and symmetric
+    if (direct or factor is not None) and not fits:
+        raise LinAlgError(f"{what}: a direct MUMPS solve needs sparse right-hand sides of a symmetric matrix")
+    own = None
+    if factor is None and fits and direct is not False:
+        factor = own = direct_factor(A, what=what, required=bool(direct))
     if factor is not None:
         try:
-            factor.solve_sparse(B, X, chunk=DIRECT_CHUNK, audit=_audit)
+            factor.solve_sparse(B, X, chunk=DIRECT_CHUNK)
         except mumps.MumpsError as exc:
             raise LinAlgError(str(exc)) from exc
         finally:
-            factor.destroy()
+            if own is not None:
+                own.destroy()
     else:  # PETSc's interface (also where the direct path was chosen by default but is unavailable)
         ksp = _mumps_ksp(A, symmetric=symmetric)
         try:

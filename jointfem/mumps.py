@@ -84,16 +84,20 @@ def unavailable() -> str | None:
 
 
 class Cholesky:
-    """The factorisation of a symmetric positive definite distributed PETSc matrix by MUMPS (its
-    upper triangle handed over as each rank's rows: ICNTL(18) = 3), for sparse right-hand sides.
-    Collective over ``comm`` (mpi4py); call ``destroy()`` on every rank."""
+    """The LDL^T factorisation of a symmetric positive definite distributed PETSc matrix by MUMPS
+    (its upper triangle handed over as each rank's rows: ICNTL(18) = 3; SYM = 2, the pivoting
+    PETSc's Cholesky through MUMPS uses too), for sparse right-hand sides (``solve_sparse``) and for
+    one dense one at a time (``solve_dense``: SLEPc's shift-invert, jointfem.linalg.eigen_rows).
+    Collective over ``comm`` (mpi4py); call ``destroy()`` on every rank.  ``audit(kind, shape)`` is
+    told what crosses the ranks."""
 
-    def __init__(self, A, comm, *, what: str):
+    def __init__(self, A, comm, *, what: str, audit=None):
         found = _interface()
         if isinstance(found, str):
             raise MumpsUnavailable(f"{what}: MUMPS cannot be called directly: {found}")
         self._ffi, self._lib, self._int, self._cint, version = found
-        self.what, self.comm = what, comm
+        self.what, self.comm, self.audit = what, comm, audit
+        self._dense = None  # solve_dense's buffers and route, made at its first call
         self.n = A.getSize()[0]
         self.r0, self.r1 = A.getOwnershipRange()
         indptr, cols, vals = A.getValuesCSR()
@@ -108,7 +112,7 @@ class Cholesky:
         self._buf = ffi.new("char[]", ffi.sizeof("DMUMPS_STRUC_C") + 65536)
         self._id = ffi.cast("DMUMPS_STRUC_C *", self._buf)
         self._id.comm_fortran = comm.py2f()
-        self._id.par, self._id.sym = 1, 1  # the host works too; symmetric positive definite
+        self._id.par, self._id.sym = 1, 2  # the host works too; symmetric (LDL^T with pivoting)
         self._call(JOB_INIT, "initialisation")
         got = ffi.string(self._id.version_number).decode(errors="replace").strip()
         if version is not None and got != version:
@@ -136,12 +140,35 @@ class Cholesky:
             raise MumpsError(f"{self.what}: MUMPS {stage} failed, INFOG(1) = {info}, INFOG(2) = "
                              f"{int(self._id.infog[1])}{hint}")
 
-    def solve_sparse(self, B_local: sp.spmatrix, out: np.ndarray, *, chunk: int, audit=None) -> None:
+    def solve_dense(self, b: np.ndarray, out: np.ndarray) -> None:
+        """A^-1 b into ``out``, both this rank's rows (n_local,): the right-hand side distributed as
+        PETSc holds it (ICNTL(20) = 10), the solution distributed (ICNTL(21) = 1) and sent to the
+        rows' owners."""
+        idd = self._id
+        if self._dense is None:
+            lsol = int(idd.info[22])
+            self._dense = {"rows": np.arange(self.r0 + 1, self.r1 + 1, dtype=self._int), "rhs": np.zeros(self.r1 - self.r0),
+                           "sol": np.empty(lsol), "isol": np.empty(lsol, dtype=self._int), "route": None}
+        d = self._dense
+        d["rhs"][:] = b
+        idd.icntl[19], idd.icntl[20] = 10, 1
+        idd.nrhs, idd.lrhs = 1, self.n
+        idd.nloc_rhs, idd.lrhs_loc = self.r1 - self.r0, max(1, self.r1 - self.r0)
+        idd.irhs_loc, idd.rhs_loc = self._ptr(d["rows"]), self._ptr(d["rhs"])
+        idd.lsol_loc = d["sol"].size
+        idd.sol_loc, idd.isol_loc = self._ptr(d["sol"]), self._ptr(d["isol"])
+        self._call(JOB_SOLVE, "solve of one dense right-hand side")
+        if d["route"] is None:
+            d["route"] = _Route(self.comm, d["isol"] - 1, self.r0, self.r1, 1, self.audit)
+        out[:] = d["route"].deliver(d["sol"].reshape(1, -1))[0]
+        idd.irhs_loc = idd.rhs_loc = idd.sol_loc = idd.isol_loc = self._ffi.NULL
+
+    def solve_sparse(self, B_local: sp.spmatrix, out: np.ndarray, *, chunk: int) -> None:
         """A^-1 B into ``out`` (this rank's rows, n_local x m), B given as this rank's rows
         (sparse, n_local x m).  B's nonzeros go to the host (what crosses: nnz(B) entries); each
         block of ``chunk`` columns is solved with its solution distributed as MUMPS maps it, then
-        sent to the ranks that own the rows.  ``audit(kind, shape)`` is told what crosses."""
-        comm, ffi, idd = self.comm, self._ffi, self._id
+        sent to the ranks that own the rows."""
+        comm, ffi, idd, audit = self.comm, self._ffi, self._id, self.audit
         B = sp.coo_matrix(B_local)
         m = B.shape[1]
         parts = [(B.row + self.r0, B.col, B.data)]
@@ -173,49 +200,65 @@ class Cholesky:
             idd.nrhs = e - c
             self._call(JOB_SOLVE, f"solve of right-hand sides {c} to {e - 1}")
             if route is None:
-                route = self._route(isol - 1, audit)
-            solved = sol[:lsol * (e - c)].reshape(e - c, lsol)  # one row per right-hand side
-            out[:, c:e] = self._deliver(solved, route, audit).T
+                route = _Route(comm, isol - 1, self.r0, self.r1, min(chunk, m), audit)
+            out[:, c:e] = route.deliver(sol[:lsol * (e - c)].reshape(e - c, lsol)).T
         if comm.rank == 0:
             idd.irhs_ptr = idd.irhs_sparse = idd.rhs_sparse = ffi.NULL
         idd.sol_loc = idd.isol_loc = ffi.NULL
-
-    def _route(self, held: np.ndarray, audit):
-        """Where each solution entry this rank holds goes: (order to send, counts to each rank,
-        counts from each rank, where the received entries land in this rank's rows)."""
-        comm = self.comm
-        if comm.size == 1:
-            land = np.empty_like(held)
-            land[held - self.r0] = np.arange(held.size)
-            return None, None, None, land
-        ends = np.array(comm.allgather(self.r1))
-        owner = np.searchsorted(ends, held, side="right")
-        order = np.argsort(owner, kind="stable")
-        send = np.bincount(owner, minlength=comm.size)
-        recv = np.array(comm.alltoall(send.tolist()))
-        got = np.empty(int(recv.sum()), dtype=np.int64)
-        comm.Alltoallv([np.ascontiguousarray(held[order], dtype=np.int64), send], [got, recv])
-        if audit:
-            audit("redistribute", (got.size,))
-        land = np.empty(self.r1 - self.r0, dtype=np.int64)
-        land[got - self.r0] = np.arange(got.size)
-        return order, send, recv, land
-
-    def _deliver(self, solved: np.ndarray, route, audit) -> np.ndarray:
-        """(k, n_local), C order: the solved entries (k, lsol) moved to this rank's rows (np.take
-        keeps the result row-major, so that its transpose fills contiguous columns)."""
-        order, send, recv, land = route
-        if order is None:
-            return np.take(solved, land, axis=1)
-        k = solved.shape[0]
-        got = np.empty((int(recv.sum()), k))
-        self.comm.Alltoallv([np.take(solved, order, axis=1).T.copy(), send * k], [got, recv * k])
-        if audit:
-            audit("redistribute", got.shape)
-        return np.take(np.ascontiguousarray(got.T), land, axis=1)
 
     def destroy(self) -> None:
         if self._id is not None:
             self._id.irn_loc = self._id.jcn_loc = self._id.a_loc = self._ffi.NULL
             self._call(JOB_END, "release")
             self._id = None
+
+
+class _Route:
+    """Moves blocks of MUMPS's distributed solution (one row per right-hand side, the entries in
+    MUMPS's order ``held``, 0-based global rows) to the rows this rank owns in PETSc's layout,
+    through buffers allocated once (fresh memory is slow to touch on this kind of machine: a new
+    100 MB temporary per block cost more than the move itself)."""
+
+    def __init__(self, comm, held: np.ndarray, r0: int, r1: int, chunk: int, audit):
+        self.comm = comm
+        self.out = np.empty((chunk, r1 - r0))
+        if comm.size == 1:
+            self.order = None
+            self.land = np.empty(held.size, dtype=np.int64)
+            self.land[held - r0] = np.arange(held.size)
+            return
+        ends = np.array(comm.allgather(r1))
+        owner = np.searchsorted(ends, held, side="right")
+        self.order = np.argsort(owner, kind="stable")  # by destination rank
+        self.send = np.bincount(owner, minlength=comm.size)
+        self.recv = np.array(comm.alltoall(self.send.tolist()))
+        got = np.empty(int(self.recv.sum()), dtype=np.int64)
+        comm.Alltoallv([np.ascontiguousarray(held[self.order], dtype=np.int64), self.send], [got, self.recv])
+        if audit:
+            audit("redistribute", (got.size, chunk))
+        self.land = np.empty(r1 - r0, dtype=np.int64)
+        self.land[got - r0] = np.arange(got.size)
+        self.sstart = np.concatenate([[0], np.cumsum(self.send)])
+        self.rstart = np.concatenate([[0], np.cumsum(self.recv)])
+        self.sendbuf = np.empty(held.size * chunk)
+        self.recvbuf = np.empty(got.size * chunk)
+        self.joined = np.empty((chunk, got.size))
+
+    def deliver(self, solved: np.ndarray) -> np.ndarray:
+        """(k, n_local), C order (its transpose fills contiguous columns of a Fortran-order array),
+        from ``solved`` (k, entries held here); a view of a buffer reused by the next block."""
+        k = solved.shape[0]
+        out = self.out[:k]
+        if self.order is None:
+            return np.take(solved, self.land, axis=1, out=out, mode="clip")  # clip: no buffered copy
+        # to each destination d a (k, count_d) block, from each source s a (k, count_s) block
+        for d in range(self.comm.size):
+            a, b = self.sstart[d], self.sstart[d + 1]
+            np.take(solved, self.order[a:b], axis=1, out=self.sendbuf[a * k:b * k].reshape(k, b - a), mode="clip")
+        total_s, total_r = int(self.sstart[-1]), int(self.rstart[-1])
+        self.comm.Alltoallv([self.sendbuf[:total_s * k], self.send * k], [self.recvbuf[:total_r * k], self.recv * k])
+        joined = self.joined[:k]
+        for src in range(self.comm.size):
+            a, b = self.rstart[src], self.rstart[src + 1]
+            joined[:, a:b] = self.recvbuf[a * k:b * k].reshape(k, b - a)
+        return np.take(joined, self.land, axis=1, out=out, mode="clip")

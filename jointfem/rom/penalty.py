@@ -39,7 +39,8 @@ from ..harmonics import Harmonics
 from ..hbm.forced import compute_rom_scales
 from ..hbm.problem import Evaluation, Layout, PointRecord, Problem, Scales, count_exponents, force_scale
 from ..hbm.residual import HBMResidual
-from ..linalg import Factorized, LinAlgError, RowBlocks, allreduce, eigen, eigen_rows, gram, solve_rows
+from ..linalg import (Factorized, LinAlgError, RowBlocks, allreduce, direct_factor, eigen, eigen_rows, gram,
+                      solve_rows)
 from ..models.structure import ContactGroup, Structure, pair_names, per_pair
 from .cms import trial_vector_derivatives
 from .common import ReducedModel, RomError, RomOptions, check_modes
@@ -127,8 +128,13 @@ def _offline_distributed(model, options: RomOptions) -> PenaltyData:
     kc = model.pairs.stiffness.ravel()
     _stuck_springs(kc, "penalty")
     t0 = time.perf_counter()
+    factor = None
     try:
-        w2, Phi = eigen_rows(model.K_lin, model.M, options.modes, what="penalty: stuck structure", comm=comm)
+        # K_lin factorised once, by MUMPS called directly where it can be, for both the shift-invert
+        # of the modes and the static modes (None: each makes its own through PETSc)
+        factor = direct_factor(model.K_lin, what="penalty: K_lin")
+        w2, Phi = eigen_rows(model.K_lin, model.M, options.modes, what="penalty: stuck structure", comm=comm,
+                             factor=factor)
         m = Phi.num_cols
         check_modes(np.eye(m), gram(model.M, Phi), "penalty: the stuck vibration modes")
         # Fortran order: each block of static modes is written, and later read, as contiguous columns
@@ -137,9 +143,12 @@ def _offline_distributed(model, options: RomOptions) -> PenaltyData:
         del Phi
         t1 = time.perf_counter()
         solve_rows(model.K_lin, sp.csr_matrix(model.gap_local.T) @ sp.diags(kc), what="penalty: K_lin", comm=comm,
-                   out=T.local[:, m:])
+                   out=T.local[:, m:], factor=factor)
     except LinAlgError as exc:
         raise RomError(str(exc)) from exc
+    finally:
+        if factor is not None:
+            factor.destroy()
     t2 = time.perf_counter()
     # T^T K_lin T without a product over the n rows but the modes': K_lin Psi = G^T Kc, so the
     # blocks that hold Psi are gap rows, Phi^T G^T Kc and Psi^T G^T Kc = (G Psi)^T Kc
@@ -155,6 +164,7 @@ def _offline_distributed(model, options: RomOptions) -> PenaltyData:
     row, amplitude = model.force
     names = list(model.outputs)
     rows = T.rows(np.array([row] + [model.outputs[nm] for nm in names], dtype=np.int64))
+    # eigen_s includes the factorisation of K_lin, which the static modes reuse
     timings = {"eigen_s": t1 - t0, "static_s": t2 - t1, "projection_s": time.perf_counter() - t2}
     return PenaltyData(Kl, Mr, Dr, GT, kc, amplitude * rows[0], np.zeros(T.num_cols), None,
                        dict(zip(names, rows[1:])), T, m, 0, np.zeros(0), timings)
