@@ -522,10 +522,12 @@ def bench_offline(path: Path, case: tuple = OFFLINE_CASE, command: str = "python
              "matrices, the modes and static modes stay in row blocks, only reduced data crosses.  Its "
              "projection takes T^T K_lin T from the gap rows (K_lin Psi = G^T Kc) and T^T M T by column blocks.  "
              "Its static modes K_lin^-1 G^T Kc: *MatMatSolve*, PETSc's MUMPS interface with distributed dense "
-             "right-hand sides, 64 at a time (the path before jointfem.mumps; `--static-solver petsc`); "
-             "*direct*, MUMPS called directly (jointfem.mumps: the right-hand sides sparse on the host, two to six "
-             "nonzeros each, the solution left distributed and sent to the rows' owners, 256 at a time; the "
-             "default).", "",
+             "right-hand sides, 64 at a time, after SLEPc factorised K_lin for the modes through PETSc too (the "
+             "path before jointfem.mumps; `--static-solver petsc`); *direct*, MUMPS called directly "
+             "(jointfem.mumps: K_lin factorised once, the modes' shift-invert applies it, the static modes' "
+             "right-hand sides go sparse to the host, two to six nonzeros each, their solution stays distributed "
+             "and is sent to the rows' owners, 256 at a time; the default).  In the direct columns the eigen "
+             "stage includes that one factorisation.", "",
              "| stage | replicated, 1 rank [s] | replicated, 2 ranks [s] | distributed, MatMatSolve, 1 rank [s] | "
              "distributed, MatMatSolve, 2 ranks [s] | speed-up | distributed, direct, 1 rank [s] | "
              "distributed, direct, 2 ranks [s] | speed-up |", "|---|---|---|---|---|---|---|---|---|"]
@@ -549,12 +551,16 @@ def bench_offline(path: Path, case: tuple = OFFLINE_CASE, command: str = "python
               + " (this machine's timing noise is about +-30 %).  Distributed and direct on 2 ranks against "
               f"replicated on 1: {statistics.median(totals['replicated', None, 1]) / statistics.median(totals['distributed', 'direct', 2]):.2f} "
               "times as fast.", "",
-              "Why the static solves by MatMatSolve do not speed up on 2 ranks (perf, 2 ranks, 100,548 DOFs): at "
-              "every call PETSc 3.18 builds and sorts a scatter of the whole distributed solution "
-              "(PetscSortIntWithArray, VecScatterCreate: about a fifth of the samples) and MUMPS allocates fresh "
-              "workspace (page zeroing: most of the kernel's share), and the forward sweep visits every front "
-              "of the dense right-hand sides.  Called directly, MUMPS skips the fronts below the interface for "
-              "sparse right-hand sides, and the solution is moved once per block by one Alltoallv.", ""]
+              "Why the static solves by MatMatSolve do not speed up on 2 ranks (perf of one 2-rank run, "
+              "100,548 DOFs, rank 0's samples over the whole run): at every call PETSc 3.18 builds and sorts a "
+              "scatter of the whole distributed solution (PetscSortIntWithArray, PetscSortIntWithDataArray, "
+              "PetscSFSetUpRanks, VecScatterCreate: 21 % of the samples), fresh memory is zeroed for each "
+              "block (clear_page: 31 %, the largest single share), and the forward sweep visits every front of "
+              "the dense right-hand sides.  Called directly, MUMPS visits only the fronts above the interface "
+              "in the forward sweep of sparse right-hand sides, and the solution is moved once per block by "
+              "one Alltoallv through buffers made once.  What is left does not halve on 2 ranks: MUMPS's solve "
+              "phase itself (about 5-6 s on 1 rank with its two BLAS threads and on 2 ranks alike, over ICNTL(27) "
+              "from -32 to 256) and first touches of the solution's fresh memory.", ""]
     path.write_text("\n".join(lines))
 
 
