@@ -417,9 +417,11 @@ CHUNK = 256  # columns per block of the projections (bounds the extra memory)
 # right-hand sides, one rank: 10.6-14.8 s at 64, 15-17 s at 256, 25 s all at once; timing noise
 # about +-30 %)
 SOLVE_CHUNK = 64
-# columns per direct MUMPS solve with sparse right-hand sides (jointfem.mumps): bounds the solution
-# buffer (n_local x DIRECT_CHUNK); MUMPS blocks them itself (ICNTL(27))
+# columns per direct MUMPS solve with sparse right-hand sides (jointfem.mumps): at most DIRECT_CHUNK,
+# and fewer where one of its three buffers (solution, send, receive: n_local x columns) would pass
+# DIRECT_BLOCK_BYTES (a 525k-DOF model on 2 ranks: 128 columns); MUMPS blocks them itself (ICNTL(27))
 DIRECT_CHUNK = 256
+DIRECT_BLOCK_BYTES = 2**28
 
 
 def _audit(kind: str, shape: tuple) -> None:
@@ -578,7 +580,7 @@ def solve_rows(A, B, *, what: str, comm=None, symmetric: bool = True, chunk: int
     given (column blocks are contiguous if ``out`` is in Fortran order).
 
     Sparse B of a symmetric positive definite A: MUMPS called directly (jointfem.mumps: sparse
-    right-hand sides on the host, the solution distributed, ``DIRECT_CHUNK`` columns per solve),
+    right-hand sides on the host, the solution distributed, up to ``DIRECT_CHUNK`` columns per solve),
     by ``factor`` if given (direct_factor(A)), else by a factorisation made and released here.
     Otherwise (dense B, ``direct`` False, JOINTFEM_MUMPS=petsc, or jointfem.mumps unavailable
     where ``direct`` was left to this function): one MUMPS factorisation through PETSc, then
@@ -599,7 +601,8 @@ def solve_rows(A, B, *, what: str, comm=None, symmetric: bool = True, chunk: int
         factor = own = direct_factor(A, what=what, required=bool(direct))
     if factor is not None:
         try:
-            factor.solve_sparse(B, X, chunk=DIRECT_CHUNK)
+            rows = int(np.diff(A.getOwnershipRanges()).max())  # the same on every rank
+            factor.solve_sparse(B, X, chunk=int(np.clip(DIRECT_BLOCK_BYTES // (8 * max(rows, 1)), 16, DIRECT_CHUNK)))
         except mumps.MumpsError as exc:
             raise LinAlgError(str(exc)) from exc
         finally:

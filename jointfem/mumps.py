@@ -160,7 +160,7 @@ class Cholesky:
         self._call(JOB_SOLVE, "solve of one dense right-hand side")
         if d["route"] is None:
             d["route"] = _Route(self.comm, d["isol"] - 1, self.r0, self.r1, 1, self.audit)
-        out[:] = d["route"].deliver(d["sol"].reshape(1, -1))[0]
+        d["route"].deliver(d["sol"].reshape(1, -1), out.reshape(1, -1))
         idd.irhs_loc = idd.rhs_loc = idd.sol_loc = idd.isol_loc = self._ffi.NULL
 
     def solve_sparse(self, B_local: sp.spmatrix, out: np.ndarray, *, chunk: int) -> None:
@@ -201,7 +201,11 @@ class Cholesky:
             self._call(JOB_SOLVE, f"solve of right-hand sides {c} to {e - 1}")
             if route is None:
                 route = _Route(comm, isol - 1, self.r0, self.r1, min(chunk, m), audit)
-            out[:, c:e] = route.deliver(sol[:lsol * (e - c)].reshape(e - c, lsol)).T
+            into = out[:, c:e].T  # (k, n_local): C-contiguous where ``out`` is in Fortran order
+            target = into if into.flags.c_contiguous else np.empty(into.shape)
+            route.deliver(sol[:lsol * (e - c)].reshape(e - c, lsol), target)
+            if target is not into:
+                into[...] = target
         if comm.rank == 0:
             idd.irhs_ptr = idd.irhs_sparse = idd.rhs_sparse = ffi.NULL
         idd.sol_loc = idd.isol_loc = ffi.NULL
@@ -216,12 +220,12 @@ class Cholesky:
 class _Route:
     """Moves blocks of MUMPS's distributed solution (one row per right-hand side, the entries in
     MUMPS's order ``held``, 0-based global rows) to the rows this rank owns in PETSc's layout,
-    through buffers allocated once (fresh memory is slow to touch on this kind of machine: a new
-    100 MB temporary per block cost more than the move itself)."""
+    straight into the caller's array, through send and receive buffers allocated once (fresh
+    memory is slow to touch on this kind of machine: a new 100 MB temporary per block cost more
+    than the move itself)."""
 
     def __init__(self, comm, held: np.ndarray, r0: int, r1: int, chunk: int, audit):
         self.comm = comm
-        self.out = np.empty((chunk, r1 - r0))
         if comm.size == 1:
             self.order = None
             self.land = np.empty(held.size, dtype=np.int64)
@@ -236,29 +240,25 @@ class _Route:
         comm.Alltoallv([np.ascontiguousarray(held[self.order], dtype=np.int64), self.send], [got, self.recv])
         if audit:
             audit("redistribute", (got.size, chunk))
-        self.land = np.empty(r1 - r0, dtype=np.int64)
-        self.land[got - r0] = np.arange(got.size)
         self.sstart = np.concatenate([[0], np.cumsum(self.send)])
         self.rstart = np.concatenate([[0], np.cumsum(self.recv)])
+        self.land = got - r0  # where each received entry goes, in the order of the sources
         self.sendbuf = np.empty(held.size * chunk)
         self.recvbuf = np.empty(got.size * chunk)
-        self.joined = np.empty((chunk, got.size))
 
-    def deliver(self, solved: np.ndarray) -> np.ndarray:
-        """(k, n_local), C order (its transpose fills contiguous columns of a Fortran-order array),
-        from ``solved`` (k, entries held here); a view of a buffer reused by the next block."""
+    def deliver(self, solved: np.ndarray, into: np.ndarray) -> None:
+        """``solved`` (k, entries held here) into ``into`` (k, n_local), a C-contiguous view (the
+        transpose of a Fortran-order block of columns)."""
         k = solved.shape[0]
-        out = self.out[:k]
         if self.order is None:
-            return np.take(solved, self.land, axis=1, out=out, mode="clip")  # clip: no buffered copy
+            np.take(solved, self.land, axis=1, out=into, mode="clip")  # clip: no buffered copy
+            return
         # to each destination d a (k, count_d) block, from each source s a (k, count_s) block
         for d in range(self.comm.size):
             a, b = self.sstart[d], self.sstart[d + 1]
             np.take(solved, self.order[a:b], axis=1, out=self.sendbuf[a * k:b * k].reshape(k, b - a), mode="clip")
         total_s, total_r = int(self.sstart[-1]), int(self.rstart[-1])
         self.comm.Alltoallv([self.sendbuf[:total_s * k], self.send * k], [self.recvbuf[:total_r * k], self.recv * k])
-        joined = self.joined[:k]
         for src in range(self.comm.size):
             a, b = self.rstart[src], self.rstart[src + 1]
-            joined[:, a:b] = self.recvbuf[a * k:b * k].reshape(k, b - a)
-        return np.take(joined, self.land, axis=1, out=out, mode="clip")
+            into[:, self.land[a:b]] = self.recvbuf[a * k:b * k].reshape(k, b - a)
