@@ -1,16 +1,17 @@
 """Sparse/dense linear algebra for the offline stage: scipy, or PETSc/SLEPc with MUMPS.
 
 Only this module (with jointfem.mumps, which it calls for MUMPS's own C interface), the mesh and
-the fem modules may touch an eigen- or linear-solver package directly.  Matrices arrive as scipy (replicated on every MPI rank); above
-``SPARSE_PETSC`` DOFs, when petsc4py and slepc4py import, the eigenvalue problems
-(SLEPc Krylov-Schur, shift-invert, MUMPS) and the factorisations (PETSc KSP + MUMPS LU)
-run distributed over ``MPI.COMM_WORLD``: each rank hands PETSc its block of rows and
-gets the full result back, so the caller never knows.  ``JOINTFEM_LINALG=scipy`` forces
+the fem modules may touch an eigen- or linear-solver package directly.  Matrices arrive as scipy
+(replicated on every MPI rank); above ``SPARSE_PETSC`` DOFs, when petsc4py and slepc4py import,
+the eigenvalue problems (SLEPc Krylov-Schur, shift-invert, MUMPS) and the factorisations (PETSc
+KSP + MUMPS LU) run distributed over ``MPI.COMM_WORLD``: each rank hands PETSc its block of rows
+and gets the full result back, so the caller never knows.  ``JOINTFEM_LINALG=scipy`` forces
 the scipy backend (ARPACK shift-invert and SuperLU), for comparisons.
 
-The distributed offline stage (the end of this module: RowBlocks, gram, eigen_rows, solve_rows)
-works on the PETSc matrices themselves (jointfem.fem.distributed) and keeps every tall matrix in
-the rows each rank owns: only reduced data crosses the ranks (gather_audit records what does).
+The distributed offline stage (the end of this module: RowBlocks, gram, eigen_rows, direct_factor,
+solve_rows) works on the PETSc matrices themselves (jointfem.fem.distributed) and keeps every
+tall matrix in the rows each rank owns: only reduced data crosses the ranks (gather_audit records
+what does).
 """
 from __future__ import annotations
 

@@ -48,11 +48,14 @@ def _reference(spec):
 
 @pytest.mark.slow
 def test_two_ranks_gather_no_model_sized_array_and_equal_serial(tmp_path):
-    """`mpirun -n 2`: every array the distributed offline stage moves between the ranks is of the
-    size of the interface (J contact components by q ROM coordinates) or smaller, never of the
-    model's n DOFs, while the replicated path's audit does show n-sized gathers (so the audit can
-    fail); the ROM equals the replicated serial one to 1e-8: natural frequencies, the linear
-    response at the outputs, and nonlinear stick-slip points (3 N, H = 3) with their active sets."""
+    """`mpirun -n 2`: every array the distributed offline stage gathers or reduces across the
+    ranks is of the size of the interface (J contact components by q ROM coordinates) or smaller,
+    never of the model's n DOFs; the one n-sized exchange is the static modes' move from the rows
+    MUMPS holds to the rows PETSc gives each rank (jointfem.mumps), in which no rank receives more
+    than its own rows (what PETSc's MatMatSolve did inside PETSc before).  The replicated path's
+    audit does show n-sized gathers (so the audit can fail).  The ROM equals the replicated serial
+    one to 1e-8: natural frequencies, the linear response at the outputs, and nonlinear stick-slip
+    points (3 N, H = 3) with their active sets."""
     size, force = 0.01, 3.0  # 7686 matrix rows (7560 free DOFs), 49 pairs, 147 components
     spec = lap_spec(size, force)
     rom, linear, nonlinear = _reference(spec)

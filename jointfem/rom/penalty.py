@@ -152,7 +152,11 @@ def _offline_distributed(model, options: RomOptions) -> PenaltyData:
     t2 = time.perf_counter()
     # T^T K_lin T without a product over the n rows but the modes': K_lin Psi = G^T Kc, so the
     # blocks that hold Psi are gap rows, Phi^T G^T Kc and Psi^T G^T Kc = (G Psi)^T Kc
-    GT = allreduce(comm, model.gap_local @ T.local)
+    # G T from the rows G reads (the interface's): a sparse product with the whole Fortran-order
+    # T.local would copy it to row-major first (scipy ravels its dense operand)
+    G = sp.csr_matrix(model.gap_local)
+    used = np.unique(G.indices)
+    GT = allreduce(comm, G[:, used] @ T.local[used])
     Kl = np.zeros((T.num_cols, T.num_cols))
     Kl[:m, :m] = gram(model.K_lin, T, cols=m)
     Kl[:, m:] = GT.T * kc
