@@ -519,7 +519,8 @@ def gram(A, T: RowBlocks, *, chunk: int = CHUNK, cols: int | None = None) -> np.
     return np.triu(out) + np.triu(out, 1).T
 
 
-def eigen_rows(A, B, num: int, *, what: str, sigma: float = 0.0, comm=None, factor=None) -> tuple[np.ndarray, RowBlocks]:
+def eigen_rows(A, B, num: int, *, what: str, sigma: float = 0.0, comm=None,
+               factor=None) -> tuple[np.ndarray, RowBlocks]:
     """eigen() of a distributed PETSc pencil, the modes left in row blocks: (w2 ascending, Phi)
     mass-normalised, each signed so that its entry of largest magnitude is positive (the first
     such row where several tie), as eigen() does.  ``factor``: A already factorised

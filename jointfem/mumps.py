@@ -2,19 +2,22 @@
 sparse right-hand sides with the solution left distributed.
 
 The penalty ROM's static modes are K_lin^-1 G^T Kc: one right-hand side per contact component, two
-nonzeros each.  PETSc's MatMatSolve hands MUMPS dense right-hand sides (every front visited in
-the forward sweep) and, in parallel, builds and sorts a scatter of the whole distributed solution
-at every call (measured on 100,548 DOFs and 1575 right-hand sides: PetscSortIntWithArray and page
-zeroing took most of the 2-rank solve, which was slower than the serial one).  Its sparse path
-(MatMatTransposeSolve) centralises the solution.  Called directly, MUMPS takes the sparse
-right-hand sides on the host (ICNTL(20) = 1: O(pairs) data, so its forward sweep visits only the
-fronts above the interface) and leaves the solution distributed (ICNTL(21) = 1), which is then
-sent to the rows each rank owns in PETSc's layout.
+to six nonzeros each (the DOFs of the pair's two nodes that its direction reads).  PETSc's
+MatMatSolve hands MUMPS dense right-hand sides (every front visited in the forward sweep) and, in
+parallel, builds and sorts a scatter of the whole distributed solution at every call (perf of a
+2-rank run on 100,548 DOFs and 1575 right-hand sides: PETSc's sorting 21 % and page zeroing 31 %
+of rank 0's samples; its static solves took longer on 2 ranks than on 1).  Its sparse path
+(MatMatTransposeSolve, which petsc4py 3.18 does not wrap) takes every column in one call and
+scatters them all (23 s on 2 ranks against 5 s on 1, measured before).  Called directly, MUMPS
+takes the sparse right-hand sides on the host (ICNTL(20) = 1: O(pairs) data, so its forward sweep
+visits only the fronts above the interface) and leaves the solution distributed (ICNTL(21) = 1),
+which is then sent to the rows each rank owns in PETSc's layout.
 
 The structure DMUMPS_STRUC_C is read from the installed header (dmumps_c.h, Debian's
 libmumps-dev, which PETSc's development package brings) by cffi, so it matches the installed
-library's version.  ``unavailable()`` says why this path cannot be used (the caller then keeps
-PETSc's MatMatSolve).  Part of the linear-algebra layer: jointfem.linalg calls it.
+library's version; the version MUMPS writes into it at initialisation must be the header's.
+``unavailable()`` says why this path cannot be used (jointfem.linalg then keeps PETSc's path).
+Part of the linear-algebra layer: only jointfem.linalg calls it.
 """
 from __future__ import annotations
 
@@ -41,7 +44,8 @@ class MumpsUnavailable(MumpsError):
 
 @functools.lru_cache(maxsize=1)
 def _interface():
-    """(ffi, lib, int dtype) for dmumps_c, or a string saying why there is none."""
+    """(ffi, lib, MUMPS_INT as a numpy dtype and as a C type, the header's MUMPS_VERSION or None)
+    for dmumps_c, or a string saying why there is none."""
     try:
         import cffi
     except ImportError:
@@ -147,8 +151,9 @@ class Cholesky:
         idd = self._id
         if self._dense is None:
             lsol = int(idd.info[22])
-            self._dense = {"rows": np.arange(self.r0 + 1, self.r1 + 1, dtype=self._int), "rhs": np.zeros(self.r1 - self.r0),
-                           "sol": np.empty(lsol), "isol": np.empty(lsol, dtype=self._int), "route": None}
+            self._dense = {"rows": np.arange(self.r0 + 1, self.r1 + 1, dtype=self._int),
+                           "rhs": np.zeros(self.r1 - self.r0), "sol": np.empty(lsol),
+                           "isol": np.empty(lsol, dtype=self._int), "route": None}
         d = self._dense
         d["rhs"][:] = b
         idd.icntl[19], idd.icntl[20] = 10, 1
