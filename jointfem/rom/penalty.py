@@ -143,7 +143,7 @@ def _offline_distributed(model, options: RomOptions) -> PenaltyData:
         del Phi
         t1 = time.perf_counter()
         solve_rows(model.K_lin, sp.csr_matrix(model.gap_local.T) @ sp.diags(kc), what="penalty: K_lin", comm=comm,
-                   out=T.local[:, m:], factor=factor)
+                   out=T.local[:, m:], factor=factor, direct=factor is not None)  # no second attempt
     except LinAlgError as exc:
         raise RomError(str(exc)) from exc
     finally:
