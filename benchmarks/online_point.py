@@ -3,7 +3,7 @@ residual with its Jacobian, then the solve of the Newton system) of the penalty 
 and the exact condensation, at a stick-slip state, on one model given by its element sizes.
 
     .venv/bin/python benchmarks/online_point.py --size 0.02 --size-normal 0.003 --size-joint 0.005 \
-        --json r.json [--methods penalty,cb,exact] [--share 0.3] [-H 3] [-N 256]
+        --json r.json [--methods penalty,cb,exact] [--share 0.3] [-H 3] [-N 256] [--exact-path schur|lu]
 
 The state: the stuck linear response at omega = 1690 rad/s (just below the stuck 2nd bending mode,
 1706 rad/s on the demo's mesh), scaled so that ``--share`` of the pairs break the stuck law
@@ -92,6 +92,9 @@ def main(argv=None):
     ap.add_argument("-H", type=int, default=3)
     ap.add_argument("-N", type=int, default=256)
     ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--exact-path", choices=("auto", "schur", "lu"), default="auto",
+                    help="the exact condensation's sparse path where the modal one is not taken (auto: schur where "
+                         "MUMPS can be called directly)")
     ap.add_argument("--json", required=True)
     args = ap.parse_args(argv)
     from mpi4py import MPI
@@ -99,7 +102,7 @@ def main(argv=None):
     from jointfem.analysis.frf import create_problem
     from jointfem.fem.continuum import ContinuumSpec, create_continuum
     from jointfem.harmonics import Harmonics
-    from jointfem.rom.common import RomOptions
+    from jointfem.rom.common import ExactModel, RomOptions
     from jointfem.rom.reductors import build_rom
 
     comm = MPI.COMM_WORLD
@@ -133,7 +136,10 @@ def main(argv=None):
             problem.restore(problem.mask | problem._linear_breaks(U))
         else:
             t0 = time.perf_counter()
-            rom = build_rom(s, method, RomOptions(modes=args.modes))
+            if method == "exact" and args.exact_path != "auto":
+                rom = ExactModel(s, sparse=args.exact_path)
+            else:
+                rom = build_rom(s, method, RomOptions(modes=args.modes))
             offline = time.perf_counter() - t0
             problem = create_problem(rom, h)
             U = scale * problem.initial_guess(OMEGA)

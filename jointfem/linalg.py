@@ -392,6 +392,95 @@ class _MumpsComplex(Factorized):
         return X[:, 0] if one else X
 
 
+def bordered_unavailable() -> str | None:
+    """None if BorderedFactor can be used here, else the reason (JOINTFEM_MUMPS=petsc, or complex
+    MUMPS not callable directly)."""
+    if os.environ.get("JOINTFEM_MUMPS") == "petsc":
+        return "JOINTFEM_MUMPS=petsc"
+    from . import mumps
+
+    return mumps.unavailable("z")
+
+
+# BorderedFactors whose MUMPS instance is alive, oldest first: at most LIVE_MAX instances and about
+# LIVE_BYTES of factors are kept (an evicted one analyses again at its next use).  Eviction happens
+# inside collective calls, in the same order on every rank, so it is safe under MPI, which a
+# finaliser run by the garbage collector would not be.
+_LIVE: list = []
+LIVE_MAX = 32
+LIVE_BYTES = 8 * 2**30
+
+
+class BorderedFactor:
+    """Z(c) = sum_j c_j A_j, complex symmetric (the A_j real, symmetric, sparse and the same on
+    every rank), factorised by complex MUMPS with its receptance on the rows of C (r x n) formed in
+    the factorisation as a Schur complement (jointfem.mumps.BorderedSchur): R = C Z^-1 C^T without
+    the n x r solutions.  One symbolic analysis for every factorisation: a branch's harmonics
+    refactorise with new coefficients only.  Distributed over COMM_WORLD (each rank assembles its
+    block of rows), collective; the results are on every rank."""
+
+    def __init__(self, mats, C, *, what: str):
+        self.mats, self.C, self.what = list(mats), sp.csr_matrix(C), what
+        self._f = None
+        self._bytes = 0
+
+    def _instance(self):
+        from . import mumps
+
+        if self._f is None:
+            while len(_LIVE) >= LIVE_MAX or (_LIVE and sum(x._bytes for x in _LIVE) > LIVE_BYTES):
+                _LIVE.pop(0)._release()
+            try:
+                self._f = mumps.BorderedSchur(self.mats, self.C, _comm().tompi4py(), what=self.what)
+            except mumps.MumpsError as exc:
+                raise LinAlgError(str(exc)) from exc
+            _LIVE.append(self)
+        return self._f
+
+    def _release(self) -> None:
+        if self._f is not None:
+            self._f.destroy()
+            self._f = None
+
+    @property
+    def coefficients(self):
+        return None if self._f is None else self._f.coefficients
+
+    def factor(self, coefficients) -> np.ndarray:
+        """Factorise Z(c); R = C Z^-1 C^T (r x r complex)."""
+        from . import mumps
+
+        f = self._instance()
+        try:
+            R = f.factor(coefficients)
+        except mumps.MumpsError as exc:
+            raise LinAlgError(f"{exc} (a singular dynamic stiffness: an undamped resonance, or rigid-body modes "
+                              "at the static harmonic?)") from exc
+        self._bytes = int(f._id.infog[21]) * 2**20  # INFOG(22): the factors' memory, MB over every rank
+        return R
+
+    def ensure(self, coefficients) -> None:
+        """Factorise Z(c) unless the current factorisation is that one."""
+        if self.coefficients != tuple(np.asarray(coefficients, dtype=complex)):
+            self.factor(coefficients)
+
+    def solve_chain(self, b, maps) -> np.ndarray:
+        """x_1 = Z^-1 b, x_{i+1} = Z^-1 maps[i-1](x_i), ..., and maps[-1](x_last), on every rank:
+        the maps run on the host only (what crosses the ranks is their last result)."""
+        from . import mumps
+
+        f = self._instance()
+        host = f.comm.rank == 0
+        x = None
+        try:
+            for i, m in enumerate(maps):
+                x = f.solve(b if host else None)
+                b = m(x) if host else None
+        except mumps.MumpsError as exc:
+            raise LinAlgError(str(exc)) from exc
+        return f.comm.bcast(b, root=0) if f.comm.size > 1 else b
+
+
 def pod(V: np.ndarray, M, num: int, against: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """The ``num`` dominant POD vectors of the snapshots V in the M inner product, after removing
     their M-projection on ``against``.  Returns (vectors M-orthonormal, singular values, all)."""

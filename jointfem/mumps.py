@@ -30,7 +30,7 @@ import numpy as np
 import scipy.sparse as sp
 
 HEADER_DIRS = (Path("/usr/include"), Path("/usr/include/mumps"), Path("/usr/local/include"))
-JOB_INIT, JOB_END, JOB_ANALYSE_FACTOR, JOB_SOLVE = -1, -2, 4, 3
+JOB_INIT, JOB_END, JOB_ANALYSE, JOB_FACTOR, JOB_ANALYSE_FACTOR, JOB_SOLVE = -1, -2, 1, 2, 4, 3
 
 
 class MumpsError(RuntimeError):
@@ -42,52 +42,107 @@ class MumpsUnavailable(MumpsError):
     match the library's)."""
 
 
-@functools.lru_cache(maxsize=1)
-def _interface():
+ARITHMETICS = {"d": ("double", "double"), "z": ("mumps_double_complex", "double")}  # (entry type, real type)
+
+
+@functools.lru_cache(maxsize=2)
+def _interface(arith: str = "d"):
     """(ffi, lib, MUMPS_INT as a numpy dtype and as a C type, the header's MUMPS_VERSION or None)
-    for dmumps_c, or a string saying why there is none."""
+    for ``arith``mumps_c ("d": real, "z": complex double), or a string saying why there is none."""
     try:
         import cffi
     except ImportError:
         return "cffi is not installed"
-    header = next((d / "dmumps_c.h" for d in HEADER_DIRS if (d / "dmumps_c.h").is_file()), None)
+    name = f"{arith}mumps_c.h"
+    header = next((d / name for d in HEADER_DIRS if (d / name).is_file()), None)
     if header is None:
-        return "dmumps_c.h not found (Debian package libmumps-dev) in " + ", ".join(map(str, HEADER_DIRS))
+        return f"{name} not found (Debian package libmumps-dev) in " + ", ".join(map(str, HEADER_DIRS))
     text = header.read_text()
-    found = re.search(r"typedef\s+struct\s*\{(.*?)\}\s*DMUMPS_STRUC_C\s*;", text, re.S)
+    A = arith.upper()
+    found = re.search(rf"typedef\s+struct\s*\{{(.*?)\}}\s*{A}MUMPS_STRUC_C\s*;", text, re.S)
     maxlen = re.search(r"#\s*define\s+MUMPS_VERSION_MAX_LEN\s+(\d+)", text)
     version = re.search(r'#\s*define\s+MUMPS_VERSION\s+"([^"]+)"', text)
     if found is None or maxlen is None:
-        return f"{header}: DMUMPS_STRUC_C or MUMPS_VERSION_MAX_LEN not found"
+        return f"{header}: {A}MUMPS_STRUC_C or MUMPS_VERSION_MAX_LEN not found"
     intdef = header.parent / "mumps_int_def.h"
     int64 = intdef.is_file() and re.search(r"^\s*#\s*define\s+MUMPS_INTSIZE64", intdef.read_text(), re.M)
     body = re.sub(r"/\*.*?\*/", "", found.group(1), flags=re.S)
     if "#" in body:
-        return f"{header}: preprocessor lines inside DMUMPS_STRUC_C, not parsed"
+        return f"{header}: preprocessor lines inside {A}MUMPS_STRUC_C, not parsed"
     cint = "int64_t" if int64 else "int"
+    entry, real = ARITHMETICS[arith]
     for macro, ctype in (("MUMPS_VERSION_MAX_LEN", maxlen.group(1)), ("MUMPS_INT8", "int64_t"),
-                         ("MUMPS_INT", cint), ("DMUMPS_COMPLEX", "double"), ("DMUMPS_REAL", "double")):
+                         ("MUMPS_INT", cint), (f"{A}MUMPS_COMPLEX", entry), (f"{A}MUMPS_REAL", real)):
         body = re.sub(rf"\b{macro}\b", ctype, body)
-    library = ctypes.util.find_library("dmumps")
+    library = ctypes.util.find_library(f"{arith}mumps")
     if library is None:
-        return "libdmumps not found"
+        return f"lib{arith}mumps not found"
     ffi = cffi.FFI()
     try:
-        ffi.cdef("typedef struct {" + body + "} DMUMPS_STRUC_C;\nvoid dmumps_c(DMUMPS_STRUC_C *);")
+        ffi.cdef("typedef struct {double r, i;} mumps_double_complex;\n"
+                 f"typedef struct {{{body}}} MUMPS_STRUC_C;\nvoid {arith}mumps_c(MUMPS_STRUC_C *);")
         lib = ffi.dlopen(library)
     except Exception as exc:  # cffi's parser or the loader: say what, keep PETSc's path
         return f"{header} with {library}: {exc}"
-    return ffi, lib, (np.int64 if int64 else np.int32), "int64_t" if int64 else "int", \
+    return ffi, getattr(lib, f"{arith}mumps_c"), (np.int64 if int64 else np.int32), cint, \
         version.group(1) if version else None
 
 
-def unavailable() -> str | None:
-    """None if MUMPS can be called directly here, else the reason."""
-    found = _interface()
+def unavailable(arith: str = "d") -> str | None:
+    """None if MUMPS (real: "d", complex: "z") can be called directly here, else the reason."""
+    found = _interface(arith)
     return found if isinstance(found, str) else None
 
 
-class Cholesky:
+class _Instance:
+    """One MUMPS instance (JOB = -1 .. -2) of arithmetic ``arith`` over ``comm``: the structure with
+    room to spare behind it (a library whose structure were larger than the header's could not write
+    past it) and the version check that the layouts agree."""
+
+    def __init__(self, arith: str, comm, *, sym: int, what: str):
+        found = _interface(arith)
+        if isinstance(found, str):
+            raise MumpsUnavailable(f"{what}: MUMPS cannot be called directly: {found}")
+        self._ffi, self._call_c, self._int, self._cint, version = found
+        self.what, self.comm = what, comm
+        self._entry = ARITHMETICS[arith][0]
+        ffi = self._ffi
+        self._buf = ffi.new("char[]", ffi.sizeof("MUMPS_STRUC_C") + 65536)
+        self._id = ffi.cast("MUMPS_STRUC_C *", self._buf)
+        self._id.comm_fortran = comm.py2f()
+        self._id.par, self._id.sym = 1, sym  # the host works too
+        self._call(JOB_INIT, "initialisation")
+        got = ffi.string(self._id.version_number).decode(errors="replace").strip()
+        if version is not None and got != version:
+            raise MumpsUnavailable(f"{what}: the MUMPS library reports version {got!r} in the structure read from "
+                                   f"its header (version {version!r}): the layouts differ, not called directly")
+        for k, v in ((1, -1), (2, -1), (3, -1), (4, 0)):  # silent
+            self._id.icntl[k - 1] = v
+
+    def _ptr(self, a: np.ndarray):
+        if a.dtype.kind == "c":
+            return self._ffi.from_buffer("mumps_double_complex[]", a)
+        return self._ffi.from_buffer(("double" if a.dtype == float else self._cint) + "[]", a)
+
+    def _call(self, job: int, stage: str) -> None:
+        self._id.job = job
+        self._call_c(self._id)
+        info = int(self._id.infog[0])
+        if info < 0:
+            hint = " (the matrix is singular or not positive definite: a substructure without supports?)" \
+                if info in (-10, -40) else ""
+            raise MumpsError(f"{self.what}: MUMPS {stage} failed, INFOG(1) = {info}, INFOG(2) = "
+                             f"{int(self._id.infog[1])}{hint}")
+
+    def destroy(self) -> None:
+        """Release MUMPS's memory (collective)."""
+        if self._id is not None:
+            self._id.irn_loc = self._id.jcn_loc = self._id.a_loc = self._ffi.NULL
+            self._call(JOB_END, "release")
+            self._id = None
+
+
+class Cholesky(_Instance):
     """The LDL^T factorisation of a symmetric positive definite distributed PETSc matrix by MUMPS
     (its upper triangle handed over as each rank's rows: ICNTL(18) = 3; SYM = 2, the pivoting
     PETSc's Cholesky through MUMPS uses too), for sparse right-hand sides (``solve_sparse``) and for
@@ -96,11 +151,8 @@ class Cholesky:
     told what crosses the ranks."""
 
     def __init__(self, A, comm, *, what: str, audit=None):
-        found = _interface()
-        if isinstance(found, str):
-            raise MumpsUnavailable(f"{what}: MUMPS cannot be called directly: {found}")
-        self._ffi, self._lib, self._int, self._cint, version = found
-        self.what, self.comm, self.audit = what, comm, audit
+        super().__init__("d", comm, sym=2, what=what)  # symmetric (LDL^T with pivoting)
+        self.audit = audit
         self._dense = None  # solve_dense's buffers and route, made at its first call
         self.n = A.getSize()[0]
         self.r0, self.r1 = A.getOwnershipRange()
@@ -110,39 +162,13 @@ class Cholesky:
         self._keep = [np.ascontiguousarray(rows[upper] + 1, dtype=self._int),
                       np.ascontiguousarray(cols[upper] + 1, dtype=self._int),
                       np.ascontiguousarray(vals[upper], dtype=float)]
-        ffi = self._ffi
-        # the structure with room to spare behind it, so that a library whose structure were larger
-        # than the header's could not write past it; the version MUMPS writes back checks the layout
-        self._buf = ffi.new("char[]", ffi.sizeof("DMUMPS_STRUC_C") + 65536)
-        self._id = ffi.cast("DMUMPS_STRUC_C *", self._buf)
-        self._id.comm_fortran = comm.py2f()
-        self._id.par, self._id.sym = 1, 2  # the host works too; symmetric (LDL^T with pivoting)
-        self._call(JOB_INIT, "initialisation")
-        got = ffi.string(self._id.version_number).decode(errors="replace").strip()
-        if version is not None and got != version:
-            raise MumpsUnavailable(f"{what}: the MUMPS library reports version {got!r} in the structure read from "
-                                   f"its header (version {version!r}): the layouts differ, not called directly")
-        for k, v in ((1, -1), (2, -1), (3, -1), (4, 0), (18, 3)):  # silent; distributed assembled input
-            self._id.icntl[k - 1] = v
+        self._id.icntl[17] = 3  # ICNTL(18) = 3: distributed assembled input
         self._id.n = self.n
         self._id.nnz_loc = self._keep[0].size
         self._id.irn_loc = self._ptr(self._keep[0])
         self._id.jcn_loc = self._ptr(self._keep[1])
         self._id.a_loc = self._ptr(self._keep[2])
         self._call(JOB_ANALYSE_FACTOR, "analysis and factorisation")
-
-    def _ptr(self, a: np.ndarray):
-        return self._ffi.from_buffer(("double" if a.dtype == float else self._cint) + "[]", a)
-
-    def _call(self, job: int, stage: str) -> None:
-        self._id.job = job
-        self._lib.dmumps_c(self._id)
-        info = int(self._id.infog[0])
-        if info < 0:
-            hint = " (the matrix is singular or not positive definite: a substructure without supports?)" \
-                if info in (-10, -40) else ""
-            raise MumpsError(f"{self.what}: MUMPS {stage} failed, INFOG(1) = {info}, INFOG(2) = "
-                             f"{int(self._id.infog[1])}{hint}")
 
     def solve_dense(self, b: np.ndarray, out: np.ndarray) -> None:
         """A^-1 b into ``out``, both this rank's rows (n_local,): the right-hand side distributed as
@@ -215,11 +241,103 @@ class Cholesky:
             idd.irhs_ptr = idd.irhs_sparse = idd.rhs_sparse = ffi.NULL
         idd.sol_loc = idd.isol_loc = ffi.NULL
 
+
+
+class BorderedSchur(_Instance):
+    """Complex symmetric Z(c) = sum_j c_j A_j (the A_j real, symmetric, sparse, n x n, given whole on
+    every rank; each rank hands MUMPS the upper triangle of its block of rows) bordered by C (r x n):
+    the augmented matrix [[Z, C^T], [C, 0]], whose Schur complement on its last r variables MUMPS
+    forms during the factorisation (ICNTL(19) = 1, returned on the host): -C Z^-1 C^T.  The analysis
+    (ordering and symbolic factorisation, on the union of the A_j's patterns) is done once;
+    ``factor(c)`` factorises again for new coefficients (JOB = 2) and returns R = C Z^-1 C^T on every
+    rank; ``solve(b)`` gives Z^-1 b on the host (the internal problem, ICNTL(26) = 0), None elsewhere.
+    What crosses the ranks: MUMPS's own traffic, the r x r complement (broadcast) and whatever
+    the caller broadcasts.  Collective over ``comm``; call ``destroy()`` on every rank."""
+
+    def __init__(self, mats, C, comm, *, what: str):
+        super().__init__("z", comm, sym=2, what=what)  # complex symmetric (not Hermitian): LDL^T
+        n, r = mats[0].shape[0], C.shape[0]
+        self.n, self.r = n, r
+        lo, hi = n * comm.rank // comm.size, n * (comm.rank + 1) // comm.size
+        parts = []
+        for A in mats:
+            Ab = sp.csr_matrix(A)[lo:hi].tocoo()
+            rows = Ab.row.astype(np.int64) + lo
+            up = Ab.col >= rows
+            parts.append((rows[up] * n + Ab.col[up], Ab.data[up]))
+        union = np.unique(np.concatenate([k for k, _ in parts]))
+        self._coef = np.zeros((len(mats), union.size))  # each A_j's entries on the union's pattern
+        for j, (keys, vals) in enumerate(parts):
+            np.add.at(self._coef[j], np.searchsorted(union, keys), vals)
+        Cc = sp.coo_matrix(C)
+        mine = (Cc.col >= lo) & (Cc.col < hi)  # the border's entries (j, n + i), j < n + i: row j's owner
+        self._m = union.size
+        self._keep = [np.ascontiguousarray(np.concatenate([union // n, Cc.col[mine]]) + 1, dtype=self._int),
+                      np.ascontiguousarray(np.concatenate([union % n, n + Cc.row[mine]]) + 1, dtype=self._int),
+                      np.zeros(union.size + int(mine.sum()), dtype=complex)]
+        self._keep[2][self._m:] = Cc.data[mine]
+        idd = self._id
+        idd.icntl[13] = 40  # ICNTL(14): 40 % more working space than the analysis estimates
+        idd.icntl[23] = 1  # ICNTL(24): null pivots detected (INFOG(28)), refused in factor()
+        idd.icntl[17], idd.icntl[18] = 3, 1  # distributed assembled input; Schur complement on the host
+        idd.n = n + r
+        idd.nnz_loc = self._keep[0].size
+        idd.irn_loc, idd.jcn_loc, idd.a_loc = (self._ptr(a) for a in self._keep)
+        if comm.rank == 0:
+            self._schur_vars = np.arange(n + 1, n + r + 1, dtype=self._int)
+            self._schur = np.empty(r * r, dtype=complex)
+            idd.size_schur = r
+            idd.listvar_schur, idd.schur = self._ptr(self._schur_vars), self._ptr(self._schur)
+        self._call(JOB_ANALYSE, "analysis")
+        self.coefficients = None  # those of the current factorisation
+
+    def factor(self, coefficients) -> np.ndarray:
+        """Factorise Z = sum_j c_j A_j and return R = C Z^-1 C^T (r x r complex, every rank)."""
+        c = np.asarray(coefficients, dtype=complex)
+        self._keep[2][:self._m] = c @ self._coef
+        self.coefficients = None
+        self._call(JOB_FACTOR, "factorisation")
+        if int(self._id.infog[27]) > 0:
+            raise MumpsError(f"{self.what}: singular, MUMPS found {int(self._id.infog[27])} null pivot(s) (INFOG(28))")
+        self.coefficients = tuple(c)
+        R = None
+        if self.comm.rank == 0:
+            # one triangle of the symmetric complement (MUMPS 5.5 fills the lower one of this row-major
+            # view and zeroes the other; a triangle entirely zero is taken for the one left out)
+            S = self._schur.reshape(self.r, self.r)
+            if not np.triu(S, 1).any():
+                S = S + np.tril(S, -1).T
+            elif not np.tril(S, -1).any():
+                S = S + np.triu(S, 1).T
+            R = -S
+            if not np.isfinite(R).all():
+                raise MumpsError(f"{self.what}: MUMPS returned a Schur complement with non-finite entries")
+        return self.comm.bcast(R, root=0) if self.comm.size > 1 else R
+
+    def solve(self, b: np.ndarray | None) -> np.ndarray | None:
+        """Z^-1 b for b (n,) or (n, k) given on the host (ignored elsewhere): the solution on the host,
+        None on the other ranks."""
+        idd = self._id
+        idd.icntl[19], idd.icntl[20], idd.icntl[25] = 0, 0, 0  # dense centralised right-hand sides and solution
+        host = self.comm.rank == 0
+        if host:
+            b = np.asarray(b)
+            one = b.ndim == 1
+            B = b.reshape(self.n, -1)
+            buf = np.zeros((B.shape[1], self.n + self.r), dtype=complex)  # Fortran order (n + r) x k
+            buf[:, :self.n] = B.T
+            idd.rhs, idd.lrhs, idd.nrhs = self._ptr(buf), self.n + self.r, B.shape[1]
+        self._call(JOB_SOLVE, "solve")
+        if not host:
+            return None
+        idd.rhs = self._ffi.NULL
+        x = buf[:, :self.n].T
+        return np.ascontiguousarray(x[:, 0]) if one else np.array(x)
+
     def destroy(self) -> None:
-        if self._id is not None:
-            self._id.irn_loc = self._id.jcn_loc = self._id.a_loc = self._ffi.NULL
-            self._call(JOB_END, "release")
-            self._id = None
+        if self._id is not None and self.comm.rank == 0:
+            self._id.listvar_schur = self._id.schur = self._ffi.NULL
+        super().destroy()
 
 
 class _Route:

@@ -188,7 +188,8 @@ def test_exact_condensation_jacobian_fd():
 def test_exact_condensation_modal_path_equals_the_lu_path(monkeypatch):
     """The modal path (one eigendecomposition, hbm.condensed) gives the sparse-LU path's operators
     and solution on the 2D lap joint (Rayleigh damping), also with the EPMC's xi; a damping that is
-    not diagonal in the modes falls back to LU, and refuses the modal path when it is required.
+    not diagonal in the modes falls back to a sparse factorisation (MUMPS's Schur complement here,
+    SuperLU where asked), and refuses the modal path when it is required.
 
     Tolerances: both paths carry the round-off of S = R^-1 of a receptance whose condition number
     reaches 1e8 (CondensedProblem.tol_floor); measured here S 2e-10, its derivatives and the linear
@@ -201,7 +202,7 @@ def test_exact_condensation_modal_path_equals_the_lu_path(monkeypatch):
     s = create_structure(load_scene(ROOT / "demos" / "lap2d.toml"))
     h = Harmonics(2, 128)
     ex = create_problem(ExactModel(s), h)
-    lu = CondensedProblem(s, h, modal=False)
+    lu = CondensedProblem(s, h, modal=False, sparse="lu")
     assert ex.branch_info() == {"condensation": "modal"} and lu.branch_info() == {"condensation": "lu"}
     # Rayleigh damping is recognised, so the stiff modes' share is summed as a series (_stiff); the
     # third omega is above what the first split covers, so the split is formed again
@@ -249,7 +250,8 @@ def test_exact_condensation_modal_path_equals_the_lu_path(monkeypatch):
     assert modal_basis(odd) is None
     with pytest.raises(LinAlgError, match="not diagonal in the modes"):
         modal_basis(odd, required=True)
-    assert create_problem(ExactModel(odd), h).branch_info() == {"condensation": "lu"}
+    assert create_problem(ExactModel(odd), h).branch_info() == {"condensation": "schur"}
+    assert create_problem(ExactModel(odd, sparse="lu"), h).branch_info() == {"condensation": "lu"}
 
 
 def test_petsc_and_scipy_backends_agree(lap3d, monkeypatch):

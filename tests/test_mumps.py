@@ -84,7 +84,7 @@ def test_a_structure_that_does_not_match_the_library_is_not_called(monkeypatch):
     not, the layouts differ, and the direct path is refused (asked for) or left for PETSc's
     MatMatSolve (by default), with the same solution."""
     found = mumps._interface()
-    monkeypatch.setattr(mumps, "_interface", lambda: found[:-1] + ("0.0.0",))
+    monkeypatch.setattr(mumps, "_interface", lambda arith="d": found[:-1] + ("0.0.0",))
     A = linalg._to_petsc(_spd(400))
     B = _rhs(400, 6, seed=2)
     with pytest.raises(linalg.LinAlgError, match="layouts differ"):

@@ -41,9 +41,10 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
+from scipy.sparse.linalg import LinearOperator
 
 from ..harmonics import Harmonics
-from ..linalg import Factorized, LinAlgError, all_modes_inverse, eigen
+from ..linalg import BorderedFactor, Factorized, LinAlgError, all_modes_inverse, bordered_unavailable, eigen
 from ..models.structure import Structure
 from .forced import ForcedProblem
 from .problem import (Evaluation, KeepsLastEvaluation, Layout, PointRecord, Problem, Scales, contact_records,
@@ -72,10 +73,15 @@ class CondensedProblem(KeepsLastEvaluation, Problem):
     tol_floor = 1e-8
     _full_problem = None  # the full model's HBM problem, for Hill's method at this problem's points
 
-    def __init__(self, structure: Structure, harmonics: Harmonics, *, modal: "bool | None | ModalBasis" = None):
+    def __init__(self, structure: Structure, harmonics: Harmonics, *, modal: "bool | None | ModalBasis" = None,
+                 sparse: str | None = None):
         """``modal``: the modal path (None: where D is diagonal in the modes and n <= MODAL_MAX;
-        True: required, an error where it cannot be taken; False: a sparse LU per harmonic and
-        omega; a ModalBasis: that one, computed offline by ``modal_basis``)."""
+        True: required, an error where it cannot be taken; False: a sparse factorisation per
+        harmonic and omega; a ModalBasis: that one, computed offline by ``modal_basis``).
+        ``sparse``, where the modal path is not taken: "schur" (complex MUMPS, the receptance formed
+        as a Schur complement, one analysis for the branch; an error where MUMPS cannot be called
+        directly), "lu" (a sparse LU and r solves per harmonic and omega), None: "schur" where it
+        can be taken."""
         if not structure.contacts:
             raise LinAlgError("exact condensation: the model has no contact pairs")
         for g in structure.contacts:
@@ -104,9 +110,19 @@ class CondensedProblem(KeepsLastEvaluation, Problem):
         nh = harmonics.num_hc
         self._num_unknowns = nh * self.r
         self._CT = self.C.T.toarray()
+        self._CT_sparse = self.C.T.tocsr()
         self._F1 = structure.fc - 1j * structure.fs
         self._ops = None  # (omega, per-harmonic data)
         self._modal = self._modal_basis(modal)  # (mu, d, V, B, V^T F1, rayleigh) or None
+        self._schur = None  # harmonic k -> BorderedFactor, on the Schur path
+        if self._modal is None:
+            if sparse not in (None, "schur", "lu"):
+                raise ValueError(f"exact condensation: sparse = {sparse!r}, expected 'schur', 'lu' or None")
+            reason = bordered_unavailable() if sparse != "lu" else "asked for"
+            if reason is None:
+                self._schur = {}
+            elif sparse == "schur":
+                raise LinAlgError(f"exact condensation (Schur path): {reason}")
         self._split = None  # the modal path's stiff modes summed as a series (_stiff)
         self._H0 = self._harmonic(0, 0.0)
         # the retained coordinates: every gap component, then the outputs
@@ -132,9 +148,10 @@ class CondensedProblem(KeepsLastEvaluation, Problem):
         return self._num_unknowns
 
     def branch_info(self) -> dict:
-        """How the harmonics were condensed: "modal" (one eigendecomposition) or "lu" (a sparse LU
-        per harmonic and omega)."""
-        return {"condensation": "modal" if self._modal is not None else "lu"}
+        """How the harmonics were condensed: "modal" (one eigendecomposition), "schur" (a MUMPS
+        factorisation per harmonic and omega, one analysis) or "lu" (a sparse LU per harmonic and
+        omega)."""
+        return {"condensation": "modal" if self._modal is not None else "schur" if self._schur is not None else "lu"}
 
     # ---- per-omega operators ------------------------------------------------------------
     def _modal_basis(self, modal):
@@ -155,6 +172,8 @@ class CondensedProblem(KeepsLastEvaluation, Problem):
         coordinates to every DOF."""
         if self._modal is not None:
             return self._harmonic_modal(k, omega, xi, recovery=recovery)
+        if self._schur is not None:
+            return self._harmonic_schur(k, omega, xi, recovery=recovery)
         s = self.full
         kw = k * omega
         D = s.D - xi * s.M if xi else s.D  # xi None or 0: the structure's own damping
@@ -181,6 +200,74 @@ class CondensedProblem(KeepsLastEvaluation, Problem):
             u = sol[:, self.r]
             ylin = self.C @ u
             dylin = -X.T @ (dZ @ u)
+        else:
+            ylin = dylin = np.zeros(self.r, dtype=complex)
+        return _Harmonic(S, dS, dSxi, ylin, dylin, T)
+
+    @staticmethod
+    def _coefficients(k: int, omega: float, xi: float | None) -> tuple:
+        """(a, b, c) of Z_k = a K + b M + c D: K - (k omega)^2 M + i k omega (D - xi M)."""
+        kw = k * omega
+        return (1.0, 0.0, 0.0) if k == 0 else (1.0, -kw**2 - 1j * kw * (xi or 0.0), 1j * kw)
+
+    def _factor(self, k: int) -> BorderedFactor:
+        """Harmonic k's factorisation on the Schur path (its analysis made at the first call)."""
+        f = self._schur.get(k)
+        if f is None:
+            s = self.full
+            f = self._schur[k] = BorderedFactor([s.K, s.M, s.D], self.C,
+                                                what=f"exact condensation: dynamic stiffness of harmonic {k}")
+        return f
+
+    def _harmonic_schur(self, k: int, omega: float, xi: float | None, *, recovery: bool) -> "_Harmonic":
+        """_harmonic on the Schur path: R_k = C Z_k^-1 C^T from MUMPS's Schur complement of
+        [[Z_k, C^T], [C, 0]], and every product with X = Z_k^-1 C^T (dS/domega, dS/dxi, the
+        recovery T) as an operator of two solves with the kept factors, never the n x r X itself:
+        dS v = S C Z^-1 Z' Z^-1 C^T S v (Z complex symmetric)."""
+        s, C, r = self.full, self.C, self.r
+        f = self._factor(k)
+        coef = self._coefficients(k, omega, xi)
+        try:
+            R = f.factor(coef)
+        except LinAlgError as exc:
+            raise LinAlgError(f"{exc}, at omega = {omega:.6g} rad/s" + (f", xi = {xi:.6g} 1/s" if xi else "")) from exc
+        try:
+            S = np.linalg.inv(R)
+        except np.linalg.LinAlgError as exc:
+            raise LinAlgError(f"exact condensation: the receptance of harmonic {k} on the contact gaps is singular "
+                              f"(two gaps or outputs are linearly dependent)") from exc
+        CT = self._CT_sparse
+
+        def chain(*maps):  # x -> the maps' chain of solves with the factor at (k, omega, xi)
+            def matvec(v):
+                f.ensure(coef)
+                return S @ f.solve_chain(CT @ (S @ np.ravel(v)), list(maps) + [lambda y: C @ y])
+            return LinearOperator((r, r), matvec=matvec, dtype=complex)
+
+        def recover(y):
+            f.ensure(coef)
+            return f.solve_chain(CT @ (S @ np.ravel(y)), [lambda x: x])
+
+        T = LinearOperator((s.num_dofs, r), matvec=recover, dtype=complex) if recovery else None
+        zero = np.zeros((r, r), dtype=complex)
+        if k == 0:
+            return _Harmonic(S, zero, zero, np.zeros(self.r), np.zeros(self.r), T)
+        D = s.D - xi * s.M if xi else s.D
+
+        def dZ(x):
+            return -2.0 * k * k * omega * (s.M @ x) + 1j * k * (D @ x)
+
+        dS = chain(dZ)
+        dSxi = zero if xi is None else chain(lambda x: (-1j * k * omega) * (s.M @ x))
+        if k == 1:  # ylin = C Z^-1 F1, dylin = -C Z^-1 Z' Z^-1 F1
+            first = {}
+
+            def keep(u):
+                first["y"] = C @ u
+                return dZ(u)
+
+            both = f.solve_chain(self._F1, [keep, lambda x: np.concatenate([first["y"], -(C @ x)])])
+            ylin, dylin = both[:r], both[r:]
         else:
             ylin = dylin = np.zeros(self.r, dtype=complex)
         return _Harmonic(S, dS, dSxi, ylin, dylin, T)
@@ -330,11 +417,11 @@ class CondensedProblem(KeepsLastEvaluation, Problem):
             ylin, dylin = (op.ylin, op.dylin) if forced else (0.0 * op.ylin, 0.0 * op.dylin)
             E = op.S @ (Yk - ylin)
             R[c], R[s_] = E.real, -E.imag
-            dE = op.dS @ (Yk - ylin) - op.S @ dylin
-            dR[c], dR[s_] = dE.real, -dE.imag
-            dE = op.dSxi @ Yk
-            dRxi[c], dRxi[s_] = dE.real, -dE.imag
-            if jacobian:
+            if jacobian:  # (on the Schur path each product with dS costs two solves)
+                dE = op.dS @ (Yk - ylin) - op.S @ dylin
+                dR[c], dR[s_] = dE.real, -dE.imag
+                dE = op.dSxi @ Yk
+                dRxi[c], dRxi[s_] = dE.real, -dE.imag
                 blk = self._real_block(op.S)
                 J[np.ix_(np.r_[c * r:(c + 1) * r, s_ * r:(s_ + 1) * r],
                          np.r_[c * r:(c + 1) * r, s_ * r:(s_ + 1) * r])] = blk
@@ -356,7 +443,7 @@ class CondensedProblem(KeepsLastEvaluation, Problem):
         h, r = self.harmonics, self.r
         data = self._operators(float(omega), float(xi), tuple(orders))
         Y = U.reshape(h.num_hc, r)
-        out = [data[0].T.real @ Y[0]]
+        out = [np.real(data[0].T @ Y[0])]
         for k in range(1, h.H + 1):
             out.append(data[k].T @ (Y[h.block_cos(k)] - 1j * Y[h.block_sin(k)]))
         return out
@@ -397,6 +484,18 @@ class CondensedProblem(KeepsLastEvaluation, Problem):
                 z = 1.0 - (k * omega) ** 2 * mu + 1j * k * omega * d
                 u = V @ ((V.T @ rhs.real + 1j * (V.T @ rhs.imag)) / z)
                 out[c], out[s_] = u.real, -u.imag
+            return out.ravel()
+        if self._schur is not None:  # u_k = Z_k^-1 rhs with the factors the evaluation above made
+            for k in range(h.H + 1):
+                rhs = -load[0] if k == 0 else -(load[h.block_cos(k)] - 1j * load[h.block_sin(k)]) + \
+                    (self._F1 if k == 1 else 0.0)
+                f = self._factor(k)
+                f.ensure(self._coefficients(k, omega, None))
+                u = f.solve_chain(np.asarray(rhs, dtype=complex), [lambda x: x])
+                if k == 0:
+                    out[0] = u.real
+                else:
+                    out[h.block_cos(k)], out[h.block_sin(k)] = u.real, -u.imag
             return out.ravel()
         out[0] = Factorized(s.K, what="exact condensation: the static harmonic's recovery").solve(-load[0])
         for k in range(1, h.H + 1):

@@ -18,7 +18,7 @@ from ..harmonics import Harmonics
 from ..hbm.condensed import CondensedProblem, ModalBasis, modal_basis
 from ..hbm.forced import ForcedProblem
 from ..hbm.problem import Problem
-from ..linalg import eigen, finite_frequencies
+from ..linalg import bordered_unavailable, eigen, finite_frequencies
 from ..models.structure import ContactGroup, Structure
 
 
@@ -181,13 +181,22 @@ class ExactModel(Reduction):
     method = "exact"
     # the modal path's eigendecomposition (hbm.condensed.modal_basis), computed once here, offline,
     # and shared by every problem created: None computes it where it can be taken, False (or None
-    # where it cannot) keeps the sparse LU path
+    # where it cannot) keeps a sparse factorisation per harmonic and omega
     modal: "ModalBasis | bool | None" = field(default=None, repr=False)
+    # that sparse path (CondensedProblem's ``sparse``): "schur", "lu", or None ("schur" where MUMPS
+    # can be called directly)
+    sparse: str | None = field(default=None, repr=False)
 
     def __post_init__(self):
         if self.modal is None:
             self.modal = modal_basis(self.full) or False
-        self.info.setdefault("condensation", "modal" if self.modal is not False else "lu")
+        if self.modal is not False:
+            path = "modal"
+        elif self.sparse is None:
+            path = "schur" if bordered_unavailable() is None else "lu"
+        else:
+            path = self.sparse
+        self.info.setdefault("condensation", path)
 
     @property
     def basis(self) -> None:
@@ -199,4 +208,4 @@ class ExactModel(Reduction):
         return sum(g.gap.shape[0] for g in self.full.contacts) + len(self.full.outputs)
 
     def create_problem(self, harmonics: Harmonics) -> Problem:
-        return CondensedProblem(self.full, harmonics, modal=self.modal)
+        return CondensedProblem(self.full, harmonics, modal=self.modal, sparse=self.sparse)
