@@ -454,8 +454,8 @@ class BorderedFactor:
         try:
             R = f.factor(coefficients)
         except mumps.MumpsError as exc:
-            raise LinAlgError(f"{exc} (a singular dynamic stiffness: an undamped resonance, or rigid-body modes "
-                              "at the static harmonic?)") from exc
+            raise LinAlgError(f"{exc} (a singular dynamic stiffness? an undamped resonance hit exactly, or a body "
+                              "held by nothing)") from exc
         self._bytes = int(f._id.infog[21]) * 2**20  # INFOG(22): the factors' memory, MB over every rank
         return R
 

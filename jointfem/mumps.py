@@ -1,5 +1,6 @@
-"""MUMPS through its own C interface, for the one solve PETSc 3.18's interface makes costly: many
-sparse right-hand sides with the solution left distributed.
+"""MUMPS through its own C interface, for what PETSc 3.18's interface makes costly or does not offer:
+many sparse right-hand sides with the solution left distributed (real, ``Cholesky``), and complex
+symmetric factorisations with a Schur complement (``BorderedSchur``).
 
 The penalty ROM's static modes are K_lin^-1 G^T Kc: one right-hand side per contact component, two
 to six nonzeros each (the DOFs of the pair's two nodes that its direction reads).  PETSc's
@@ -13,9 +14,14 @@ takes the sparse right-hand sides on the host (ICNTL(20) = 1: O(pairs) data, so 
 visits only the fronts above the interface) and leaves the solution distributed (ICNTL(21) = 1),
 which is then sent to the rows each rank owns in PETSc's layout.
 
-The structure DMUMPS_STRUC_C is read from the installed header (dmumps_c.h, Debian's
-libmumps-dev, which PETSc's development package brings) by cffi, so it matches the installed
-library's version; the version MUMPS writes into it at initialisation must be the header's.
+The exact condensation's harmonics need complex MUMPS, which Debian's real PETSc does not offer, and
+MUMPS's Schur complement, which gives the receptance on the gaps C Z^-1 C^T from the factorisation
+of the bordered matrix [[Z, C^T], [C, 0]] without the n x r solutions (``BorderedSchur``).
+
+The structures DMUMPS_STRUC_C and ZMUMPS_STRUC_C are read from the installed headers (dmumps_c.h,
+zmumps_c.h: Debian's libmumps-dev, which PETSc's development package brings) by cffi, so they match
+the installed library's version; the version MUMPS writes into them at initialisation must be the
+header's.
 ``unavailable()`` says why this path cannot be used (jointfem.linalg then keeps PETSc's path).
 Part of the linear-algebra layer: only jointfem.linalg calls it.
 """
@@ -84,7 +90,7 @@ def _interface(arith: str = "d"):
         lib = ffi.dlopen(library)
     except Exception as exc:  # cffi's parser or the loader: say what, keep PETSc's path
         return f"{header} with {library}: {exc}"
-    return ffi, getattr(lib, f"{arith}mumps_c"), (np.int64 if int64 else np.int32), cint, \
+    return ffi, lib.dmumps_c if arith == "d" else lib.zmumps_c, (np.int64 if int64 else np.int32), cint, \
         version.group(1) if version else None
 
 
@@ -105,7 +111,6 @@ class _Instance:
             raise MumpsUnavailable(f"{what}: MUMPS cannot be called directly: {found}")
         self._ffi, self._call_c, self._int, self._cint, version = found
         self.what, self.comm = what, comm
-        self._entry = ARITHMETICS[arith][0]
         ffi = self._ffi
         self._buf = ffi.new("char[]", ffi.sizeof("MUMPS_STRUC_C") + 65536)
         self._id = ffi.cast("MUMPS_STRUC_C *", self._buf)
@@ -278,7 +283,6 @@ class BorderedSchur(_Instance):
         self._keep[2][self._m:] = Cc.data[mine]
         idd = self._id
         idd.icntl[13] = 40  # ICNTL(14): 40 % more working space than the analysis estimates
-        idd.icntl[23] = 1  # ICNTL(24): null pivots detected (INFOG(28)), refused in factor()
         idd.icntl[17], idd.icntl[18] = 3, 1  # distributed assembled input; Schur complement on the host
         idd.n = n + r
         idd.nnz_loc = self._keep[0].size
@@ -296,9 +300,11 @@ class BorderedSchur(_Instance):
         c = np.asarray(coefficients, dtype=complex)
         self._keep[2][:self._m] = c @ self._coef
         self.coefficients = None
+        # no null-pivot detection (ICNTL(24) = 0): a body held by its contacts alone (tests/test_preload.py)
+        # has rigid-body modes at the static harmonic, whose pivots round-off keeps tiny but not zero;
+        # R is then large in their direction and S = R^-1 close to singular there, as it is physically
+        # (the contact springs of the residual's Jacobian hold the body), as SuperLU's path did
         self._call(JOB_FACTOR, "factorisation")
-        if int(self._id.infog[27]) > 0:
-            raise MumpsError(f"{self.what}: singular, MUMPS found {int(self._id.infog[27])} null pivot(s) (INFOG(28))")
         self.coefficients = tuple(c)
         R = None
         if self.comm.rank == 0:
