@@ -2,6 +2,7 @@
 
     python demos/brb.py --out docs              # make brb (about 40 min on 2 cores)
     python demos/brb.py --quick --out DIR       # the test's setting: a coarse mesh, about 2 min
+    python demos/brb.py --measured LTW_Mode1Trimmed_27Sept2021.mat --out DIR   # beside measured data
 
 demos/brb.toml: free-free on two soft supports, three bolts preloading the lap through a static
 contact solve, 217 contact pairs.  In one run:
@@ -18,7 +19,12 @@ Pictures: the pressure map, the contact states and the deformed shape at each le
 backbone beside Porter & Brake's simulated one.
 
 Every number is computed here, in one run.  The published data it stands beside (docs/brb.md)
-are cited there; nothing is fitted to them.
+are cited there; nothing is fitted to them.  ``--measured`` puts a measured mode-1 backbone beside
+the model (table and plot): the file Porter & Brake's code reads (tmd-lab/microslip-rough-contact,
+README: EXPERIMENTAL_DATA/LTW_Mode1Trimmed_27Sept2021.mat, downloaded from Rice University's Box,
+not in that repository; its struct BB with Qaccel [m/s^2], Wmean [Hz] and Zmean [fraction of
+critical], as its scripts PLOTS/elastic_bb.m and EXPERIMENTAL_DATA/ltw_trim_bb.m read them), or a
+CSV with the columns accel_m_s2, freq_Hz, zeta.
 """
 from __future__ import annotations
 
@@ -171,7 +177,7 @@ def stuck_modes(lines, structure):
 
 # ---- 3. the backbone -----------------------------------------------------------------------
 
-def backbone(lines, scene, structure, amplitudes, img: Path):
+def backbone(lines, scene, structure, amplitudes, img: Path, measured: dict | None = None):
     opts = dataclasses.replace(app.nma_options(scene, mode=MODE), at=tuple(amplitudes))
     t0 = time.perf_counter()
     rom = build_rom(structure, "penalty", ROM)
@@ -233,7 +239,12 @@ def backbone(lines, scene, structure, amplitudes, img: Path):
     a2.loglog([e[0] for e in ex], [e[2] for e in ex], "ks", mfc="none", ms=8, label="jointfem, exact condensation")
     a1.semilogx(P23_FLAT[:, 0], P23_FLAT[:, 1] / 2 / np.pi, "--", c="C3", label="Porter & Brake 2023, simulated (flat)")
     a2.loglog(P23_FLAT[:, 0], 100 * P23_FLAT[:, 2], "--", c="C3", label="Porter & Brake 2023, simulated (flat)")
-    a1.axhspan(175.5, 180.0, color="0.85", label="measured range (axes of P23's figure)")
+    if measured is None:
+        a1.axhspan(175.5, 180.0, color="0.85", label="measured range (axes of P23's figure)")
+    else:
+        name = Path(measured["source"]).name
+        a1.semilogx(measured["accel"], measured["freq_Hz"], "x", c="k", ms=4, label=f"measured ({name})")
+        a2.loglog(measured["accel"], 100 * measured["zeta"], "x", c="k", ms=4, label=f"measured ({name})")
     for ax, yl in ((a1, "frequency [Hz]"), (a2, "damping ratio [%]")):
         ax.set_xlabel("tip acceleration amplitude [m/s^2]")
         ax.set_ylabel(yl)
@@ -245,6 +256,70 @@ def backbone(lines, scene, structure, amplitudes, img: Path):
     plt.close(fig)
     lines += ["![backbone](img/brb_backbone.png)", ""]
     return bb, errs, t_off, t_rom
+
+
+# ---- a measured backbone (--measured) -------------------------------------------------------
+
+MEASURED_FIELDS = ("Qaccel", "Wmean", "Zmean")  # BB's fields: m/s^2, Hz, fraction of critical
+MEASURED_COLUMNS = ("accel_m_s2", "freq_Hz", "zeta")
+
+
+class MeasuredDataError(ValueError):
+    """A measured backbone file that cannot be used, with the file, the key and the value."""
+
+
+def load_measured(path: Path) -> dict:
+    """{"accel", "freq_Hz", "zeta"} (sorted by acceleration) from a .mat file's struct BB (fields
+    MEASURED_FIELDS) or a CSV (columns MEASURED_COLUMNS); MeasuredDataError naming the file, the key
+    and the value where it cannot be used.  Called before any model is built."""
+    path = Path(path)
+    if not path.is_file():
+        raise MeasuredDataError(f"{path}: no such file")
+    if path.suffix.lower() == ".mat":
+        import scipy.io
+
+        try:
+            data = scipy.io.loadmat(path, squeeze_me=True, struct_as_record=False)
+        except NotImplementedError as exc:  # MATLAB v7.3 (HDF5)
+            raise MeasuredDataError(f"{path}: a MATLAB v7.3 file, which scipy cannot read: save BB with "
+                                    f"save(file, 'BB', '-v7')") from exc
+        except Exception as exc:
+            raise MeasuredDataError(f"{path}: not a MATLAB file scipy can read ({exc})") from exc
+        if "BB" not in data:
+            raise MeasuredDataError(f"{path}: no variable BB (found: {', '.join(k for k in data if not k.startswith('__'))})")
+        bb = data["BB"]
+        fields = bb.__dict__ if isinstance(bb, scipy.io.matlab.mat_struct) else {}
+        cols = []
+        for key in MEASURED_FIELDS:
+            if key not in fields:
+                raise MeasuredDataError(f"{path}: BB has no field {key} (BB is {type(bb).__name__}"
+                                        f"{' with ' + ', '.join(k for k in fields if k != '_fieldnames') if fields else ''})")
+            cols.append(np.atleast_1d(np.asarray(fields[key], dtype=float)).ravel())
+        keys = [f"BB.{k}" for k in MEASURED_FIELDS]
+    else:
+        import csv
+
+        with open(path, newline="") as fh:
+            rows = list(csv.DictReader(fh))
+        missing = [k for k in MEASURED_COLUMNS if not rows or k not in rows[0]]
+        if missing:
+            raise MeasuredDataError(f"{path}: column {missing[0]} missing (expected {', '.join(MEASURED_COLUMNS)})")
+        cols = []
+        for key in MEASURED_COLUMNS:
+            try:
+                cols.append(np.array([float(r[key]) for r in rows]))
+            except ValueError as exc:
+                raise MeasuredDataError(f"{path}: column {key}: {exc}") from exc
+        keys = list(MEASURED_COLUMNS)
+    if len({c.size for c in cols}) != 1 or cols[0].size < 2:
+        raise MeasuredDataError(f"{path}: {', '.join(keys)} must have the same length, at least 2 "
+                                f"(lengths {', '.join(str(c.size) for c in cols)})")
+    for key, c in zip(keys, cols):
+        bad = ~np.isfinite(c) | (c <= 0)
+        if bad.any():
+            raise MeasuredDataError(f"{path}: {key}[{int(np.argmax(bad))}] = {c[bad][0]!r}: must be finite and positive")
+    order = np.argsort(cols[0])
+    return {"accel": cols[0][order], "freq_Hz": cols[1][order], "zeta": cols[2][order], "source": str(path)}
 
 
 # ---- 4. the forced response ----------------------------------------------------------------
@@ -387,14 +462,18 @@ def harmonics_check(lines, scene, sets, F):
     return dw, da
 
 
-def published(lines, bb, f1):
-    """The model beside the published BRB data (typed here with their sources; nothing fitted)."""
+def published(lines, bb, f1, measured: dict | None = None):
+    """The model beside the published BRB data (typed here with their sources; nothing fitted), and
+    beside a measured backbone where one is given (``load_measured``)."""
     acc = bb.amplitude * bb.omega ** 2
     f = bb.omega / 2 / np.pi
 
     def at(a, y, x=acc):
         return float(np.interp(np.log(a), np.log(x), y)) if x[0] <= a <= x[-1] else float("nan")
     p_acc, p_f, p_z = P23_FLAT[:, 0], P23_FLAT[:, 1] / 2 / np.pi, P23_FLAT[:, 2]
+    if measured is not None:
+        measured_section(lines, acc, f, bb.zeta, measured)
+        return
     rows = [["low-amplitude mode 1 frequency [Hz]", "175.5 - 180 (the frequency axis of P23's plot of the "
              "measured backbone; the data were not reachable)", "168.50 (P23, flat interface), 180.63 (P23, "
              "measured mesoscale topology)", f"{f1:.2f} stuck; {f[0]:.2f} at {acc[0]:.2g} m/s^2"],
@@ -419,7 +498,7 @@ def published(lines, bb, f1):
               "",
               f"What this can and cannot show.  The measured backbone of P23 (their figure of mode 1, from Rice "
               f"University's tests) was not reachable as numbers: only the ranges of its plot's axes are known "
-              f"to us, and they are marked as such.  The comparison is therefore one of orders: the model's "
+              f"to us, and they are marked as such.  Porter & Brake's code reads those data from EXPERIMENTAL_DATA/LTW_Mode1Trimmed_27Sept2021.mat (tmd-lab/microslip-rough-contact's README: a download from Rice University's Box, not in the repository); with that file, `python demos/brb.py --measured LTW_Mode1Trimmed_27Sept2021.mat` puts it beside the model point by point.  The comparison is therefore one of orders: the model's "
               f"low-amplitude frequency, {f[0]:.1f} Hz, lies {f[0] / 177.75 - 1:+.1%} from the middle of the "
               f"measured band and {f[0] / 168.50 - 1:+.1%} from P23's flat-interface model; its damping starts at "
               f"{100 * bb.zeta[0]:.3f} % (the measured 0.087 % is put in, not predicted) and reaches "
@@ -440,12 +519,47 @@ def published(lines, bb, f1):
               "suspension is not this scene's, and it is not compared here.", ""]
 
 
+def measured_section(lines, acc, f, zeta, m: dict) -> None:
+    """Section 6 with a measured backbone: the model's at the measured accelerations (log-interpolated
+    along its branch; only where the branch covers them), with the differences."""
+    ma, mf, mz = m["accel"], m["freq_Hz"], m["zeta"]
+    inside = np.flatnonzero((ma >= acc[0]) & (ma <= acc[-1]))
+    pick = inside[np.unique(np.linspace(0, inside.size - 1, min(12, inside.size)).round().astype(int))] \
+        if inside.size else inside
+    rows = []
+    for i in pick:
+        fm = float(np.interp(np.log(ma[i]), np.log(acc), f))
+        zm = float(np.interp(np.log(ma[i]), np.log(acc), zeta))
+        rows.append([f"{ma[i]:.3g}", f"{mf[i]:.3f}", f"{fm:.3f}", f"{fm / mf[i] - 1:+.2%}", f"{100 * mz[i]:.4f}",
+                     f"{100 * zm:.4f}", f"{zm / mz[i]:.2f}"])
+    name = Path(m["source"]).name
+    lines += ["## 6. Beside the measured backbone", "",
+              f"Measured: {name} ({ma.size} points, tip acceleration {ma[0]:.3g} to {ma[-1]:.3g} m/s^2, frequency "
+              f"{mf.min():.2f} to {mf.max():.2f} Hz, damping ratio {100 * mz.min():.3f} to {100 * mz.max():.3f} %), "
+              f"read by `demos/brb.py --measured` (the fields of Porter & Brake's BB struct, or a CSV).  The model's "
+              f"branch covers {acc[0]:.3g} to {acc[-1]:.3g} m/s^2: {inside.size} of the measured points lie in it, "
+              f"{len(rows)} of them below.  Nothing is fitted: mu and the contact stiffness are the scene's inputs.", ""]
+    if rows:
+        lines += [md_table(["tip accel [m/s^2]", "f measured [Hz]", "f model [Hz]", "f model / measured - 1",
+                            "zeta measured [%]", "zeta model [%]", "zeta model / measured"], rows), ""]
+    else:
+        lines += ["No measured point lies within the model's branch: nothing to compare.", ""]
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", default="docs")
     ap.add_argument("--work", default=None, help="result folders of the sweeps (default results/brb)")
     ap.add_argument("--quick", action="store_true", help="a coarse mesh (33 pairs): the test's setting")
+    ap.add_argument("--measured", default=None,
+                    help="a measured mode-1 backbone to stand beside the model: a .mat with struct BB (Qaccel m/s^2, "
+                         "Wmean Hz, Zmean fraction of critical) or a CSV (accel_m_s2, freq_Hz, zeta)")
     args = ap.parse_args(argv)
+    try:
+        measured = None if args.measured is None else load_measured(Path(args.measured))
+    except MeasuredDataError as exc:  # before any model is built
+        print(f"brb: error: {exc}", file=sys.stderr)
+        return 2
     t_start = time.perf_counter()
     out = Path(args.out)
     img = out / "img"
@@ -458,6 +572,8 @@ def main(argv=None) -> int:
     structure = create_structure(scene)
     t_build = time.perf_counter() - t0
     cmd = "`python demos/brb.py --quick`" if args.quick else "`python demos/brb.py --out docs` (`make brb`)"
+    if measured is not None:
+        cmd = cmd.replace("`python demos/brb.py", f"`python demos/brb.py --measured {args.measured}")
     lines = ["# The Brake-Reuss beam, swept", "",
              f"Generated by {cmd} at commit {commit()} on {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())} "
              f"({platform.machine()}, 2 cores); every number below comes from that one run.  Scene "
@@ -467,10 +583,10 @@ def main(argv=None) -> int:
     f1, f_rb = stuck_modes(lines, structure)
     print(f"brb: {structure.num_pairs} pairs, equilibrium {eq:.1e}, mode 1 stuck {f1:.3f} Hz", file=sys.stderr,
           flush=True)
-    bb, bb_errs, _, _ = backbone(lines, scene, structure, (3e-5, 1e-4) if args.quick else AMPLITUDES, img)
+    bb, bb_errs, _, _ = backbone(lines, scene, structure, (3e-5, 1e-4) if args.quick else AMPLITUDES, img, measured)
     rows, frf_errs = forced(lines, scene, work, LEVELS, img, sets)
     dw, da = harmonics_check(lines, scene, sets, LEVELS[1])
-    published(lines, bb, f1)
+    published(lines, bb, f1, measured)
     summary = {"pairs": structure.num_pairs, "dofs": structure.num_dofs, "equilibrium_rel": eq,
                "stuck_mode1_Hz": f1, "highest_rigid_Hz": f_rb,
                "backbone_err_omega_max": max(e[0] for e in bb_errs), "backbone_err_zeta_max": max(e[1] for e in bb_errs),

@@ -110,3 +110,67 @@ def test_brb_peak_does_not_depend_on_round_off_in_K():
     assert 1130 < omega[0] < 1145
     assert np.ptp(omega) / omega.min() < 1e-8, omega
     assert np.ptp(amp) / amp.min() < 1e-8, amp
+
+
+def _brb_module():
+    import importlib
+
+    sys.path.insert(0, str(ROOT / "demos"))
+    return importlib.import_module("brb")
+
+
+def test_a_measured_backbone_stands_beside_the_model(tmp_path):
+    """`demos/brb.py --measured FILE`: a .mat with Porter & Brake's struct BB (Qaccel, Wmean, Zmean)
+    or the same as CSV is read, sorted by acceleration, and section 6 lists the model's branch at
+    the measured accelerations inside it (log-interpolated) with the differences; the points outside
+    the branch are counted, not compared.  A stand-in branch with a closed form: f = 180 - 0.1 a Hz,
+    zeta = 1e-3 (1 + a / 10)."""
+    import numpy as np
+    import scipy.io
+
+    brb = _brb_module()
+    a = np.array([13.0, 0.2, 1.0, 4.0, 40.0])  # unsorted; 0.2 and 40 lie outside the branch below
+    f = 179.0 - 0.1 * a
+    z = 1.1e-3 * (1 + a / 10)
+    scipy.io.savemat(tmp_path / "bb.mat", {"BB": {"Qaccel": a, "Wmean": f, "Zmean": z, "Wmin": f - 1}})
+    (tmp_path / "bb.csv").write_text("accel_m_s2,freq_Hz,zeta\n" + "".join(f"{x},{y},{w}\n" for x, y, w in zip(a, f, z)))
+    ms = [brb.load_measured(tmp_path / "bb.mat"), brb.load_measured(tmp_path / "bb.csv")]
+    for m in ms:
+        assert list(m["accel"]) == sorted(a) and np.allclose(m["freq_Hz"], 179.0 - 0.1 * m["accel"], rtol=1e-14)
+
+    class Branch:  # a backbone: tip amplitude x, omega, zeta, with acceleration x omega^2 from 0.5 to 20 m/s^2
+        acc = np.geomspace(0.5, 20.0, 400)
+        omega = 2 * np.pi * (180.0 - 0.1 * acc)
+        amplitude = acc / omega**2
+        zeta = 1e-3 * (1 + acc / 10)
+        info = {"linear_zeta": 1e-3}
+
+    lines = []
+    brb.published(lines, Branch(), 180.0, ms[0])
+    text = "\n".join(lines)
+    assert "## 6. Beside the measured backbone" in text and "3 of the measured points lie in it" in text
+    rows = {float(r.split("|")[1]): r.split("|") for r in text.splitlines() if r.startswith("| ") and "[" not in r}
+    assert sorted(rows) == [1.0, 4.0, 13.0]
+    for x, r in rows.items():  # the model is 1 Hz above the measurement, its damping 1/1.1 of it
+        assert float(r[3]) == pytest.approx(180.0 - 0.1 * x, abs=2e-3) and float(r[2]) == pytest.approx(179.0 - 0.1 * x)
+        assert float(r[7]) == pytest.approx(1 / 1.1, abs=0.01)
+
+
+@pytest.mark.parametrize("content, match", [
+    ({"BB": {"Qaccel": [1.0, 2.0], "Zmean": [1e-3, 2e-3]}}, r"bb\.mat: BB has no field Wmean"),
+    ({"other": [1.0]}, r"bb\.mat: no variable BB"),
+    ({"BB": {"Qaccel": [1.0, -2.0], "Wmean": [170.0, 171.0], "Zmean": [1e-3, 2e-3]}}, r"BB\.Qaccel\[1\] = -2\.0"),
+    ({"BB": {"Qaccel": [1.0, 2.0, 3.0], "Wmean": [170.0, 171.0], "Zmean": [1e-3, 2e-3]}}, r"same length"),
+])
+def test_a_measured_file_that_cannot_be_used_is_refused_before_the_model(tmp_path, content, match):
+    """The error names the file, the key and the value, and comes before any model is built (exit
+    code 2 within a second from the script)."""
+    import scipy.io
+
+    brb = _brb_module()
+    scipy.io.savemat(tmp_path / "bb.mat", content)
+    with pytest.raises(brb.MeasuredDataError, match=match):
+        brb.load_measured(tmp_path / "bb.mat")
+    r = subprocess.run([sys.executable, str(ROOT / "demos" / "brb.py"), "--measured", str(tmp_path / "bb.mat"),
+                        "--out", str(tmp_path / "out")], capture_output=True, text=True, cwd=ROOT, timeout=120)
+    assert r.returncode == 2 and "brb: error:" in r.stderr and not (tmp_path / "out" / "brb.md").exists()
