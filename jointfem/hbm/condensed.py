@@ -109,7 +109,6 @@ class CondensedProblem(KeepsLastEvaluation, Problem):
         self.r = self.C.shape[0]
         nh = harmonics.num_hc
         self._num_unknowns = nh * self.r
-        self._CT = self.C.T.toarray()
         self._CT_sparse = self.C.T.tocsr()
         self._F1 = structure.fc - 1j * structure.fs
         self._ops = None  # (omega, per-harmonic data)
@@ -180,7 +179,8 @@ class CondensedProblem(KeepsLastEvaluation, Problem):
         Z = (s.K - kw**2 * s.M + 1j * kw * D) if k else s.K
         lu = Factorized(Z, what=f"exact condensation: dynamic stiffness of harmonic {k} at omega = {omega:.6g} rad/s"
                         + (f", xi = {xi:.6g} 1/s" if xi is not None else ""))
-        rhs = self._CT if k != 1 else np.column_stack([self._CT, self._F1])
+        CT = self.C.T.toarray()  # dense n x r right-hand sides: the LU path only
+        rhs = CT if k != 1 else np.column_stack([CT, self._F1])
         sol = lu.solve(rhs.astype(complex) if k else rhs)
         X = sol[:, :self.r]
         R = self.C @ X
