@@ -168,11 +168,14 @@ def test_exact_condensation_equals_full_order():
     assert np.abs(Y - Yf).max() <= 1e-8 * np.abs(Yf).max()
 
 
-def test_exact_condensation_jacobian_fd():
-    """The condensed residual's Jacobian and omega-derivative against central differences."""
+@pytest.mark.parametrize("path", ["modal", "schur"])
+def test_exact_condensation_jacobian_fd(path):
+    """The condensed residual's Jacobian and omega-derivative against central differences, on the
+    modal path and on the Schur path (whose dS/domega is two solves per product)."""
     s = create_structure(load_scene(ROOT / "demos" / "lap2d.toml"))
     h = Harmonics(2, 128)
-    ex = create_problem(ExactModel(s), h)
+    ex = create_problem(ExactModel(s) if path == "modal" else ExactModel(s, modal=False, sparse="schur"), h)
+    assert ex.branch_info() == {"condensation": path}
     w = 1700.0
     rng = np.random.default_rng(3)
     Y = ex.initial_guess(w) * 2.0 + 1e-7 * rng.standard_normal(ex.num_unknowns)

@@ -5,7 +5,8 @@ dS/dxi, the recovery of the full field) as two solves with the kept factors.
 
 References: dense linear algebra (jointfem.mumps.BorderedSchur), the sparse-LU path (SuperLU and r
 solves per harmonic: an independent factorisation and formula), full order (the condensation is
-exact), central differences (its Jacobian), and one rank against two.
+exact), and one rank against two; its Jacobian against central differences is
+tests/test_continuum.py's test_exact_condensation_jacobian_fd.
 """
 from __future__ import annotations
 
@@ -147,23 +148,6 @@ def test_schur_path_solution_and_full_field_equal_full_order():
     assert np.abs(Y - Yf).max() <= 1e-8 * np.abs(Yf).max()
     Ue = ex.full_coefficients(Y, W)
     assert np.abs(Ue - U).max() <= 1e-8 * np.abs(U).max()
-
-
-def test_schur_path_jacobian_by_central_differences():
-    """The Schur path's Jacobian and omega-derivative (dS as two solves per product) against central
-    differences, with test_continuum's tolerances for the LU and modal paths (measured 2e-8 and 3e-7)."""
-    s = _lap2d()
-    h = Harmonics(2, 128)
-    ex = create_problem(ExactModel(s, modal=False), h)
-    rng = np.random.default_rng(3)
-    Y = ex.initial_guess(W) * 2.0 + 1e-7 * rng.standard_normal(ex.num_unknowns)
-    ev = ex.evaluate(Y, W)
-    d = 1e-7 * np.abs(Y).max() * rng.standard_normal(Y.size)
-    fd = 0.5 * (ex.evaluate(Y + d, W, jacobian=False).R - ex.evaluate(Y - d, W, jacobian=False).R)
-    assert np.abs(fd - ev.J @ d).max() <= 1e-5 * np.abs(ev.J @ d).max()
-    dw = 0.2
-    fdw = (ex.evaluate(Y, W + dw, jacobian=False).R - ex.evaluate(Y, W - dw, jacobian=False).R) / (2 * dw)
-    assert np.abs(fdw - ev.dR_dlam).max() <= 1e-5 * np.abs(ev.dR_dlam).max()
 
 
 def test_an_operator_outlives_its_factorisation(monkeypatch):
