@@ -123,6 +123,8 @@ def main(argv=None):
     U1 = pp.initial_guess(OMEGA)
     scale = scale_for_share(pp, U1, args.share)
     breaks = breaking_pairs(pp, scale * U1)
+    if "penalty" not in methods:  # its basis is not needed any more: memory for the other methods
+        pen = pp = None
     out = {"ranks": comm.size, "dofs": s.num_dofs, "pairs": s.num_pairs, "size": args.size,
            "size_normal": args.size_normal, "size_joint": args.size_joint, "H": args.H, "N": args.N,
            "omega": OMEGA, "share_asked": args.share, "pairs_breaking": int(breaks.sum()),

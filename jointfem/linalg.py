@@ -429,7 +429,7 @@ class BorderedFactor:
 
         if self._f is None:
             while len(_LIVE) >= LIVE_MAX or (_LIVE and sum(x._bytes for x in _LIVE) > LIVE_BYTES):
-                _LIVE.pop(0)._release()
+                _LIVE[0]._release()
             try:
                 self._f = mumps.BorderedSchur(self.mats, self.C, _comm().tompi4py(), what=self.what)
             except mumps.MumpsError as exc:
@@ -441,6 +441,11 @@ class BorderedFactor:
         if self._f is not None:
             self._f.destroy()
             self._f = None
+            _LIVE.remove(self)
+
+    def release(self) -> None:
+        """Free the factors now (collective); a later use analyses and factorises again."""
+        self._release()
 
     @property
     def coefficients(self):

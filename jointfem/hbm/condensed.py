@@ -124,6 +124,8 @@ class CondensedProblem(KeepsLastEvaluation, Problem):
                 raise LinAlgError(f"exact condensation (Schur path): {reason}")
         self._split = None  # the modal path's stiff modes summed as a series (_stiff)
         self._H0 = self._harmonic(0, 0.0)
+        if self._schur is not None:  # the static harmonic's factors are needed again only for a recovery
+            self._schur[0].release()
         # the retained coordinates: every gap component, then the outputs
         names = [f"gap.{i}" for i in range(self.num_gaps)] + out_names
         outputs = {k: self.num_gaps + out_names.index(k) if k in out_names
