@@ -308,14 +308,12 @@ class BorderedSchur(_Instance):
         self.coefficients = tuple(c)
         R = None
         if self.comm.rank == 0:
-            # one triangle of the symmetric complement (MUMPS 5.5 fills the lower one of this row-major
-            # view and zeroes the other; a triangle entirely zero is taken for the one left out)
-            S = self._schur.reshape(self.r, self.r)
-            if not np.triu(S, 1).any():
-                S = S + np.tril(S, -1).T
-            elif not np.tril(S, -1).any():
-                S = S + np.triu(S, 1).T
-            R = -S
+            # the lower triangle of this row-major view: "by rows, the lower triangular part" for a
+            # symmetric matrix (ICNTL(19) = 1); the rest of the array is not defined (MUMPS 5.5 leaves
+            # zeros there for small complements and work data for larger ones: 77138 nonzeros above
+            # the diagonal at r = 650, tests/test_exact_schur.py)
+            S = np.tril(self._schur.reshape(self.r, self.r))
+            R = -(S + np.tril(S, -1).T)
             if not np.isfinite(R).all():
                 raise MumpsError(f"{self.what}: MUMPS returned a Schur complement with non-finite entries")
         return self.comm.bcast(R, root=0) if self.comm.size > 1 else R
