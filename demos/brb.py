@@ -1,6 +1,6 @@
 """The Brake-Reuss beam swept (issue 16) -> docs/brb.md and docs/img/brb_*.png.
 
-    python demos/brb.py --out docs              # make brb (about 40 min on 2 cores)
+    python demos/brb.py --out docs              # make brb (about 9 min on 2 cores)
     python demos/brb.py --quick --out DIR       # the test's setting: a coarse mesh, about 2 min
     python demos/brb.py --measured LTW_Mode1Trimmed_27Sept2021.mat --out DIR   # beside measured data
 
