@@ -461,7 +461,7 @@ class BorderedFactor:
         except mumps.MumpsError as exc:
             raise LinAlgError(f"{exc} (a singular dynamic stiffness? an undamped resonance hit exactly, or a body "
                               "held by nothing)") from exc
-        self._bytes = int(f._id.infog[21]) * 2**20  # INFOG(22): the factors' memory, MB over every rank
+        self._bytes = f.factor_bytes
         return R
 
     def ensure(self, coefficients) -> None:

@@ -318,6 +318,11 @@ class BorderedSchur(_Instance):
                 raise MumpsError(f"{self.what}: MUMPS returned a Schur complement with non-finite entries")
         return self.comm.bcast(R, root=0) if self.comm.size > 1 else R
 
+    @property
+    def factor_bytes(self) -> int:
+        """The last factorisation's memory over every rank (INFOG(22), MB), in bytes."""
+        return int(self._id.infog[21]) * 2**20
+
     def solve(self, b: np.ndarray | None) -> np.ndarray | None:
         """Z^-1 b for b (n,) or (n, k) given on the host (ignored elsewhere): the solution on the host,
         None on the other ranks."""

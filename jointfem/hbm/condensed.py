@@ -254,10 +254,9 @@ class CondensedProblem(KeepsLastEvaluation, Problem):
         zero = np.zeros((r, r), dtype=complex)
         if k == 0:
             return _Harmonic(S, zero, zero, np.zeros(self.r), np.zeros(self.r), T)
-        D = s.D - xi * s.M if xi else s.D
-
-        def dZ(x):
-            return -2.0 * k * k * omega * (s.M @ x) + 1j * k * (D @ x)
+        def dZ(x):  # Z' = -2 k^2 omega M + i k (D - xi M), applied without forming it
+            Mx = s.M @ x
+            return (-2.0 * k * k * omega - 1j * k * (xi or 0.0)) * Mx + 1j * k * (s.D @ x)
 
         dS = chain(dZ)
         dSxi = zero if xi is None else chain(lambda x: (-1j * k * omega) * (s.M @ x))
