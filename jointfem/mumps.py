@@ -314,9 +314,11 @@ class BorderedSchur(_Instance):
             # the diagonal at r = 650, tests/test_exact_schur.py)
             S = np.tril(self._schur.reshape(self.r, self.r))
             R = -(S + np.tril(S, -1).T)
-            if not np.isfinite(R).all():
-                raise MumpsError(f"{self.what}: MUMPS returned a Schur complement with non-finite entries")
-        return self.comm.bcast(R, root=0) if self.comm.size > 1 else R
+        if self.comm.size > 1:
+            R = self.comm.bcast(R, root=0)
+        if not np.isfinite(R).all():  # on every rank alike, after the broadcast
+            raise MumpsError(f"{self.what}: MUMPS returned a Schur complement with non-finite entries")
+        return R
 
     @property
     def factor_bytes(self) -> int:
