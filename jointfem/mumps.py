@@ -300,10 +300,9 @@ class BorderedSchur(_Instance):
         c = np.asarray(coefficients, dtype=complex)
         self._keep[2][:self._m] = c @ self._coef
         self.coefficients = None
-        # no null-pivot detection (ICNTL(24) = 0): a body held by its contacts alone (tests/test_preload.py)
-        # has rigid-body modes at the static harmonic, whose pivots round-off keeps tiny but not zero;
-        # R is then large in their direction and S = R^-1 close to singular there, as it is physically
-        # (the contact springs of the residual's Jacobian hold the body), as SuperLU's path did
+        # no null-pivot detection (ICNTL(24) = 0): it flagged the bolted plate of tests/test_preload.py,
+        # which the condensation handles; jointfem.hbm.condensed forms the static harmonic by
+        # jointfem.linalg.Factorized, whose pivot check refuses a body without supports
         self._call(JOB_FACTOR, "factorisation")
         self.coefficients = tuple(c)
         R = None

@@ -124,8 +124,6 @@ class CondensedProblem(KeepsLastEvaluation, Problem):
                 raise LinAlgError(f"exact condensation (Schur path): {reason}")
         self._split = None  # the modal path's stiff modes summed as a series (_stiff)
         self._H0 = self._harmonic(0, 0.0)
-        if self._schur is not None:  # the static harmonic's factors are needed again only for a recovery
-            self._schur[0].release()
         # the retained coordinates: every gap component, then the outputs
         names = [f"gap.{i}" for i in range(self.num_gaps)] + out_names
         outputs = {k: self.num_gaps + out_names.index(k) if k in out_names
@@ -173,7 +171,7 @@ class CondensedProblem(KeepsLastEvaluation, Problem):
         coordinates to every DOF."""
         if self._modal is not None:
             return self._harmonic_modal(k, omega, xi, recovery=recovery)
-        if self._schur is not None:
+        if self._schur is not None and k > 0:  # the static harmonic, once: the LU path below
             return self._harmonic_schur(k, omega, xi, recovery=recovery)
         s = self.full
         kw = k * omega
@@ -222,10 +220,13 @@ class CondensedProblem(KeepsLastEvaluation, Problem):
         return f
 
     def _harmonic_schur(self, k: int, omega: float, xi: float | None, *, recovery: bool) -> "_Harmonic":
-        """_harmonic on the Schur path: R_k = C Z_k^-1 C^T from MUMPS's Schur complement of
+        """_harmonic on the Schur path, k >= 1: R_k = C Z_k^-1 C^T from MUMPS's Schur complement of
         [[Z_k, C^T], [C, 0]], and every product with X = Z_k^-1 C^T (dS/domega, dS/dxi, the
         recovery T) as an operator of two solves with the kept factors, never the n x r X itself:
-        dS v = S C Z^-1 Z' Z^-1 C^T S v (Z complex symmetric)."""
+        dS v = S C Z^-1 Z' Z^-1 C^T S v (Z complex symmetric).  The static harmonic, formed once per
+        problem, takes the LU path: its pivot check refuses a body without supports (K singular),
+        which MUMPS's null-pivot detection cannot tell from a body held by its contacts alone
+        (tests/test_continuum.py, tests/test_preload.py)."""
         s, C, r = self.full, self.C, self.r
         f = self._factor(k)
         coef = self._coefficients(k, omega, xi)
@@ -252,8 +253,7 @@ class CondensedProblem(KeepsLastEvaluation, Problem):
 
         T = LinearOperator((s.num_dofs, r), matvec=recover, dtype=complex) if recovery else None
         zero = np.zeros((r, r), dtype=complex)
-        if k == 0:
-            return _Harmonic(S, zero, zero, np.zeros(self.r), np.zeros(self.r), T)
+
         def dZ(x):  # Z' = -2 k^2 omega M + i k (D - xi M), applied without forming it
             Mx = s.M @ x
             return (-2.0 * k * k * omega - 1j * k * (xi or 0.0)) * Mx + 1j * k * (s.D @ x)
@@ -486,19 +486,15 @@ class CondensedProblem(KeepsLastEvaluation, Problem):
                 u = V @ ((V.T @ rhs.real + 1j * (V.T @ rhs.imag)) / z)
                 out[c], out[s_] = u.real, -u.imag
             return out.ravel()
+        out[0] = Factorized(s.K, what="exact condensation: the static harmonic's recovery").solve(-load[0])
         if self._schur is not None:  # u_k = Z_k^-1 rhs with the factors the evaluation above made
-            for k in range(h.H + 1):
-                rhs = -load[0] if k == 0 else -(load[h.block_cos(k)] - 1j * load[h.block_sin(k)]) + \
-                    (self._F1 if k == 1 else 0.0)
+            for k in range(1, h.H + 1):
+                rhs = -(load[h.block_cos(k)] - 1j * load[h.block_sin(k)]) + (self._F1 if k == 1 else 0.0)
                 f = self._factor(k)
                 f.ensure(self._coefficients(k, omega, None))
                 u = f.solve_chain(np.asarray(rhs, dtype=complex), [lambda x: x])
-                if k == 0:
-                    out[0] = u.real
-                else:
-                    out[h.block_cos(k)], out[h.block_sin(k)] = u.real, -u.imag
+                out[h.block_cos(k)], out[h.block_sin(k)] = u.real, -u.imag
             return out.ravel()
-        out[0] = Factorized(s.K, what="exact condensation: the static harmonic's recovery").solve(-load[0])
         for k in range(1, h.H + 1):
             c, s_ = h.block_cos(k), h.block_sin(k)
             rhs = -(load[c] - 1j * load[s_]) + (self._F1 if k == 1 else 0.0)
