@@ -443,10 +443,6 @@ class BorderedFactor:
             self._f = None
             _LIVE.remove(self)
 
-    def release(self) -> None:
-        """Free the factors now (collective); a later use analyses and factorises again."""
-        self._release()
-
     @property
     def coefficients(self):
         return None if self._f is None else self._f.coefficients

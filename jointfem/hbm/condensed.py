@@ -206,9 +206,9 @@ class CondensedProblem(KeepsLastEvaluation, Problem):
 
     @staticmethod
     def _coefficients(k: int, omega: float, xi: float | None) -> tuple:
-        """(a, b, c) of Z_k = a K + b M + c D: K - (k omega)^2 M + i k omega (D - xi M)."""
+        """(a, b, c) of Z_k = a K + b M + c D for k >= 1: K - (k omega)^2 M + i k omega (D - xi M)."""
         kw = k * omega
-        return (1.0, 0.0, 0.0) if k == 0 else (1.0, -kw**2 - 1j * kw * (xi or 0.0), 1j * kw)
+        return 1.0, -kw**2 - 1j * kw * (xi or 0.0), 1j * kw
 
     def _factor(self, k: int) -> BorderedFactor:
         """Harmonic k's factorisation on the Schur path (its analysis made at the first call)."""
