@@ -244,3 +244,10 @@ def test_two_ranks_equal_one(tmp_path):
     U = ex.full_coefficients(Y, W)
     assert np.abs(two["Y"] - Y).max() <= 1e-9 * np.abs(Y).max()
     assert np.abs(two["U"] - U).max() <= 1e-9 * np.abs(U).max()
+
+
+def test_an_unknown_sparse_path_is_refused_by_name():
+    """CondensedProblem(sparse=...) takes "schur", "lu" or None; anything else is refused, naming it."""
+    s = _lap2d()
+    with pytest.raises(ValueError, match=r"sparse = 'qr', expected 'schur', 'lu' or None"):
+        CondensedProblem(s, Harmonics(1, 8), modal=False, sparse="qr")
