@@ -82,8 +82,17 @@ class GapProfile:
         else:
             from scipy.interpolate import LinearNDInterpolator
 
-            g = LinearNDInterpolator(pts[:, :2], pts[:, 2])(xz)  # NaN outside the points' convex hull
+            interp = LinearNDInterpolator(pts[:, :2], pts[:, 2])
+            g = interp(xz)  # NaN outside the points' convex hull
             out = ~np.isfinite(g)
+            if out.any():
+                # a pair on the hull's edge is inside or out by round-off (Qhull's test of a node at
+                # x = 1e-19 against an edge at x = 0 went either way with the CPU's kernels, issue 51):
+                # moved towards the table's centroid by 1e-9 of its distance, it is inside unless it
+                # lies farther out than that (g0 changes by its slope times that distance)
+                c = pts[:, :2].mean(axis=0)
+                g[out] = interp(xz[out] + 1e-9 * (c - xz[out]))
+                out = ~np.isfinite(g)
         if out.any():
             k = int(np.flatnonzero(out)[0])
             raise ContinuumError(f"{where}: {int(out.sum())} contact pairs lie outside the points of {self.source} "
