@@ -164,7 +164,7 @@ def test_a_complete_sweep_says_so(tmp_path):
     s = json.loads((out / "summary.json").read_text())
     assert s["status"] == "complete" and "stop_reason" not in s
     assert set(s["continuation"]) == {"refused_steps", "corners_passed", "sharp_corners", "kinks_crossed", "redone_steps",
-                                      "retraces_refused"}
+                                      "retraces_refused", "leaps"}
 
 
 def test_a_range_without_its_resonance_says_no_peak(tmp_path):

@@ -320,3 +320,40 @@ def test_a_point_refused_for_landing_far_never_changes_the_problem():
         continue_branch(line, np.array([0.0]), 0.0, 1.0, x_scale=1.0, lam_scale=1.0, r_scale=1.0, options=opts,
                         adapt=spy)
     assert spy.asked == [0.0]
+
+
+def torn(x, lam, gap=0.2):
+    """R = x - lam - gap [lam > 0.5]: a branch torn at lam = 0.5, whose Jacobian is the same on both
+    sides (no orientation flips, so no corner step is offered)."""
+    x = np.atleast_1d(x)
+    return x - lam - gap * (lam > 0.5), np.eye(1), -np.ones(1)
+
+
+@pytest.mark.parametrize("leaps", [20, 0])
+def test_a_leap_at_fixed_lam_is_the_last_resort_before_a_stop(leaps):
+    """Where every step is refused down to ds_min, Newton at fixed lam = lam + corner_ds 2^k
+    (towards lam_end) from the last point finds the branch beyond, and the branch goes on from
+    there to lam_end; without leaps (max_leaps = 0) it stops at the tear with its points, as it did
+    before.  The tear stands for a fold on a kink that no step's hyperplane reaches across (the
+    9-pair lap joint under another OpenBLAS kernel, issue 52): with turn_ds_floor below ds_min every
+    corrector that lands across it (0.2 away, 7 steps of 0.02) is refused as landing too far, and so is the step at
+    fixed lam from the predictor (across())."""
+    opts = ContinuationOptions(ds0=0.02, ds_max=0.02, max_points=2000, turn_ds_floor=1e-7, max_leaps=leaps)
+    stats = {}
+
+    def run():
+        return continue_branch(torn, np.array([0.0]), 0.0, 1.0, x_scale=1.0, lam_scale=1.0, r_scale=1.0,
+                               options=opts, stats=stats)
+
+    if leaps:
+        pts = run()
+        assert stats["leaps"] == 1 and pts[-1].lam >= 1.0
+    else:
+        with pytest.raises(ContinuationError, match="ds_min") as err:
+            run()
+        pts = err.value.points
+        assert stats["leaps"] == 0 and abs(pts[-1].lam - 0.5) < 1e-3
+    x = np.array([p.x[0] for p in pts])
+    lam = np.array([p.lam for p in pts])
+    np.testing.assert_allclose(x, lam + 0.2 * (lam > 0.5), atol=1e-12)  # every point on the branch
+    assert np.all(np.diff(lam) > 0)  # never back

@@ -138,6 +138,10 @@ class ContinuationOptions:
     # a sharp corner (the last resort before a stop) may be probed from the last point converged to
     # the tolerance this many points back, over points accepted only at the relaxed kink tolerance
     max_relaxed_back: int = 50
+    # leaps (the last resort before a stop, see leap()): Newton at fixed lam + corner_ds 2^k (towards
+    # lam_end), k < leap_tries, at most max_leaps times on a branch (0: never)
+    leap_tries: int = 6
+    max_leaps: int = 20
     newton: NewtonOptions = field(default_factory=NewtonOptions)
 
 
@@ -501,7 +505,7 @@ def continue_branch(fun: Callable, x0: np.ndarray, lam0: float, lam_end: float, 
     redo = 0
     counts = stats if stats is not None else {}
     counts.update(refused_steps=0, corners_passed=0, sharp_corners=0, kinks_crossed=0, redone_steps=0,
-                  retraces_refused=0)
+                  retraces_refused=0, leaps=0)
 
     def stop(why: str):
         return ContinuationError(f"continuation stopped at lam = {mu * lam_scale:.9g} before reaching "
@@ -529,6 +533,11 @@ def continue_branch(fun: Callable, x0: np.ndarray, lam0: float, lam_end: float, 
                 # grown at such a point left the 3D lap joint at 5 N unable to step on, issue 14)
                 return (None, None, it, res, None, None, False,
                         f"corrector landed {jump / ds:.1f} step lengths away")
+            if adapt is not None and (why := retraces(y_new, mu_new)) is not None:
+                # likewise a point back on the branch traced: the problem must not adapt to it (the
+                # penalty ROM's active set grown at such a point turned every later step back along
+                # the branch, at 1732.95 rad/s on the 9-pair lap joint under another BLAS kernel)
+                return None, None, it, res, None, None, False, why
             changed = adapt is not None and adapt.after_converge(space.full(y_new), mu_new * lam_scale)
             if changed:
                 # the problem changed: the tangent at the last accepted point, then the same step again
@@ -730,6 +739,91 @@ def continue_branch(fun: Callable, x0: np.ndarray, lam0: float, lam_end: float, 
                 y, mu, t, orient = here
         return None
 
+    def adapted(y_new, mu_new, it, res, nopts):
+        """A point found at fixed mu_new, solved again at that mu in the problem as it adapts to it
+        (the last point and its tangent carried along, as a redone step does), or (None, 0, inf)
+        where it fails or lands back on the branch traced (the problem is then put back)."""
+        nonlocal y, t, orient, space, g_space
+        if adapt is None:
+            return y_new, it, res
+        here = (space, t, orient)
+        for _ in range(adapt.max_redo):
+            if not adapt.after_converge(space.full(y_new), mu_new * lam_scale):
+                return y_new, it, res
+            old = space
+            y, t = rebase(y, t)
+            y_new = space.carry(y_new, old)
+
+            def F(y_):
+                R, J, _ = g(y_, mu_new)
+                return R, J
+
+            try:
+                y_new, more, res = _damped_newton(F, y_new, nopts, "corrector at fixed lam", lambda _: mu_new * lam_scale)
+            except (ConvergenceError, np.linalg.LinAlgError, RuntimeError):
+                break
+            it += more
+            if retraces(y_new, mu_new) is not None:
+                break
+        if space is not here[0]:
+            adapt.restore(adapt.state_of(points[-1].x))
+            space = _Space(x_scale, unknowns())
+            g_space = _scaled(fun, space, lam_scale, r_scale)
+            y = space.sub(points[-1].x)
+            t = np.append(space.carry(here[1][:-1], here[0]), here[1][-1])
+            t = t / np.linalg.norm(t)
+        orient = here[2]
+        return None, 0, np.inf
+
+    def leap():
+        """The last resort where the branch would stop (every step refused down to ds_min): a point of
+        the branch beyond a kink that no step on a hyperplane reaches, found by Newton at fixed lam
+        = mu + corner_ds 2^k towards lam_end (a branch that folds back beyond is then followed back
+        by the steps from there; a leap the other way would take a branch refused as it came, for
+        going back along its own points, onto those points' far side).
+
+        Where a fold lies on a kink whose piece beyond turns back by more than 90 deg, the hyperplane
+        normal to the tangent meets no solution ahead at any step length, and whether the orientation
+        flips at the predictor (which beyond() needs) depends on which side of the kink's surface an
+        off-branch predictor falls: a matter of round-off (issue 52: the 9-pair lap joint at 1470.68
+        rad/s stalled under one OpenBLAS kernel and passed under another).  A solution at a fixed lam
+        near the last point is either the branch traced (refused by the retrace rule) or its
+        continuation: the first found (the smallest change of lam) is taken, within max_jump times the
+        distance that a branch with |t_lam| >= 0.01 covers for that change of lam; an adaptive
+        problem adapts to it first (adapted()).  Returns attempt()'s tuple (never a changed problem) or None."""
+        nopts = replace(opts.newton, max_iter=min(opts.newton.max_iter, opts.corrector_max_iter))
+        for k in range(opts.leap_tries):
+            mu_new = mu + direction * opts.corner_ds * 2.0 ** k
+
+            def F(y_):
+                R, J, _ = g(y_, mu_new)
+                return R, J
+
+            try:
+                y_new, it, res = _damped_newton(F, y.copy(), nopts, "corrector at fixed lam", lambda _: mu_new * lam_scale)
+            except (ConvergenceError, np.linalg.LinAlgError, RuntimeError):
+                continue
+            dmu = abs(mu_new - mu)
+            jump = float(np.linalg.norm(np.append(y_new - y, dmu)))
+            if not 1e-3 * dmu < jump <= opts.max_jump * dmu / 1e-2 or retraces(y_new, mu_new) is not None:
+                continue
+            try:
+                y_new, it, res = adapted(y_new, mu_new, it, res, nopts)
+                if y_new is None:
+                    continue
+                # (y in the problem as it is now)
+                sec = np.append(y_new, mu_new) - np.append(y, mu)
+                sec = sec / max(np.linalg.norm(sec), 1e-300)
+                R, J, dl = g(y_new, mu_new)
+                t_new, _ = _tangent(J, dl, sec)
+                t_new, orient_new = _tangent(J, dl, t_new)
+            except (np.linalg.LinAlgError, RuntimeError):
+                continue
+            log.debug("leap at lam=%.9g to lam=%.9g (%.2g step lengths of corner_ds)", mu * lam_scale,
+                      mu_new * lam_scale, jump / opts.corner_ds)
+            return y_new, mu_new, it, res, t_new, orient_new, False, None  # (attempt()'s tuple)
+        return None
+
     try:
         while (mu - mu_end) * direction < 0:
             if len(points) >= opts.max_points:
@@ -809,8 +903,16 @@ def continue_branch(fun: Callable, x0: np.ndarray, lam0: float, lam_end: float, 
                 ds *= 0.5
                 log.debug("step rejected at lam=%.6g (%s); ds -> %.3g", mu * lam_scale, failure, ds)
                 if ds < opts.ds_min:
-                    raise stop(f"the step fell below ds_min = {opts.ds_min:.1e}; last failure: {failure}")
-                continue
+                    # (like a sharp corner, only where the retrace rule can tell the way back)
+                    out = (leap() if opts.corner_steps and opts.retrace_tol is not None and opts.leap_tries
+                           and counts["leaps"] < opts.max_leaps else None)
+                    if out is None:
+                        raise stop(f"the step fell below ds_min = {opts.ds_min:.1e}; last failure: {failure}")
+                    counts["leaps"] += 1
+                    y_new, mu_new, it, res, t_new, orient_new, changed, failure = out
+                    d, ds = t_new, opts.corner_ds
+                else:
+                    continue
             if opts.lam_bounds is not None and not opts.lam_bounds[0] <= mu_new * lam_scale <= opts.lam_bounds[1]:
                 raise stop(f"the branch left [{opts.lam_bounds[0]:.6g}, {opts.lam_bounds[1]:.6g}] at lam = "
                            f"{mu_new * lam_scale:.9g}: it turned back at a fold and does not come back to lam_end (lam_bounds)")
