@@ -6,7 +6,9 @@ from __future__ import annotations
 
 import argparse
 import logging
+import signal
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -57,7 +59,7 @@ def cmd_frf(args) -> int:
         stop = solution.incomplete
         print(f"jointfem: sweep incomplete: {stop}. The {summary['num_points']} converged points are in {out}/ "
               f"(summary.json status \"incomplete\")", file=sys.stderr)
-        return 130 if stop.interrupted else 3
+        return _interrupted_code() if stop.interrupted else 3
     if not args.quiet:
         for name, pk in summary["peaks"].items():
             if pk.get("edge"):  # the largest amplitude at an end of the range: no resonance inside it
@@ -132,7 +134,7 @@ def cmd_force(args) -> int:
     if stopped is not None:
         print(f"jointfem: force sweep incomplete: {stopped}. The {summary['num_points']} converged points are in "
               f"{out}/ (summary.json status \"incomplete\"; go on with --resume {out})", file=sys.stderr)
-        return 130 if stopped.interrupted else 3
+        return _interrupted_code() if stopped.interrupted else 3
     if not args.quiet:
         print(f"{summary['num_points']} points from scale {lo:g} to {resp.scale[-1]:.6g} at {args.omega:g} rad/s "
               f"-> {out}/")
@@ -167,7 +169,7 @@ def cmd_nma(args) -> int:
         stop = solution.incomplete
         print(f"jointfem: backbone incomplete: {stop}. The {summary['num_points']} converged points are in {out}/ "
               f"(summary.json status \"incomplete\")", file=sys.stderr)
-        return 130 if stop.interrupted else 3
+        return _interrupted_code() if stop.interrupted else 3
     if not args.quiet:
         lin = summary["linear"]
         print(f"mode {summary['mode']}: stuck {lin['omega_rad_s']:.6g} rad/s ({lin['freq_Hz']:.5g} Hz), "
@@ -344,14 +346,43 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+_SIGNAL = [signal.SIGINT]  # the last signal that interrupted the run
+
+
+def _stop_on_signal(signum, frame):
+    """SIGTERM and SIGHUP (a batch scheduler's wall-time limit, `timeout`, a closed terminal) stop the
+    run as Ctrl-C does: a sweep keeps its converged points and writes them, status incomplete."""
+    _SIGNAL[0] = signum
+    raise KeyboardInterrupt(signal.Signals(signum).name)
+
+
+def _interrupted_code() -> int:
+    """The shell's code for a run stopped by a signal: 128 + its number (130 Ctrl-C, 143 SIGTERM)."""
+    return 128 + int(_SIGNAL[0])
+
+
+def _signal_policy() -> None:
+    """One policy for every command: SIGINT raises KeyboardInterrupt (Python's own handler, which
+    gmsh takes away: jointfem.fem.compat.restore_sigint puts it back), SIGTERM and SIGHUP likewise
+    (_stop_on_signal)."""
+    if threading.current_thread() is not threading.main_thread():
+        return  # (main() called from a thread: signals are the main thread's)
+    # a signal ignored when the run started stays ignored (nohup ignores SIGHUP; a shell's background
+    # job SIGINT), as Python itself leaves an ignored SIGINT
+    for sig in (signal.SIGTERM, getattr(signal, "SIGHUP", None)):
+        if sig is not None and signal.getsignal(sig) == signal.SIG_DFL:
+            signal.signal(sig, _stop_on_signal)
+
+
 def main(argv=None) -> int:
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
     args = build_parser().parse_args(argv)
+    _signal_policy()
     try:
         return args.func(args)
     except KeyboardInterrupt:  # outside a sweep (a sweep keeps its points and returns 130 itself)
-        print("jointfem: interrupted (Ctrl-C)", file=sys.stderr)
-        return 130
+        print(f"jointfem: interrupted ({signal.Signals(_SIGNAL[0]).name})", file=sys.stderr)
+        return _interrupted_code()
     except (SceneError, ConvergenceError, ContinuationError, ContactError, OutputError, RomError,
             LinAlgError, ContinuumError) as exc:
         from . import parallel

@@ -942,9 +942,10 @@ def continue_branch(fun: Callable, x0: np.ndarray, lam0: float, lam_end: float, 
             points[-1].ds_next = ds
     except _OutOfTime:
         raise stop(f"the time limit of {opts.time_limit:g} s was reached (time_limit)") from None
-    except KeyboardInterrupt:
-        # Ctrl-C: the points converged so far are kept, as for any other stop
-        raise ContinuationError(f"continuation interrupted (Ctrl-C) at lam = {points[-1].lam:.9g} after "
+    except KeyboardInterrupt as exc:
+        # Ctrl-C (or SIGTERM, SIGHUP, which jointfem's command line raises as it): the points converged
+        # so far are kept, as for any other stop
+        raise ContinuationError(f"continuation interrupted ({str(exc) or 'Ctrl-C'}) at lam = {points[-1].lam:.9g} after "
                                 f"{len(points)} points", points=points, interrupted=True) from None
     log.debug("branch done: %d points, %s", len(points), counts)
     return points

@@ -63,6 +63,7 @@ def import_dolfinx():
     except ImportError as exc:  # pragma: no cover - depends on the machine
         raise RuntimeError("the continuum models need dolfinx, ufl and mpi4py (Debian: python3-dolfinx; "
                            "run `make setup`)") from exc
+    restore_sigint()  # (dolfinx.io may import gmsh)
     return dolfinx
 
 
@@ -168,3 +169,16 @@ def assemble_vector(form):
     b = fp.assemble_vector(compiled)
     b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
     return b.array.copy()
+
+
+def restore_sigint() -> None:
+    """Python's own SIGINT handler (KeyboardInterrupt) back after gmsh: gmsh 4.8's module sets SIGINT
+    to SIG_DFL when it is imported (later releases in initialize unless interruptible=False), so that
+    Ctrl-C killed the process and a sweep lost its converged points (issue 50).  Only where gmsh left
+    the default action (a handler someone installed on purpose stays), and only in the main thread."""
+    import signal
+    import threading
+
+    if threading.current_thread() is threading.main_thread() and signal.getsignal(signal.SIGINT) in (
+            signal.SIG_DFL, None):
+        signal.signal(signal.SIGINT, signal.default_int_handler)

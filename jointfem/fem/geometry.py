@@ -124,10 +124,13 @@ def ensure_gmsh():
     global _GMSH_READY
     import gmsh
 
+    from . import compat
+
     if not _GMSH_READY:
         gmsh.initialize(readConfigFiles=False)
         gmsh.option.setNumber("General.Terminal", 0)
         _GMSH_READY = True
+    compat.restore_sigint()
     return gmsh
 
 
