@@ -2,7 +2,7 @@
 PY := .venv/bin/python
 MPIRUN := mpirun $(if $(filter 0,$(shell id -u)),--allow-run-as-root) --oversubscribe
 
-.PHONY: setup demo test test-trixie test-fast bench bench-corners bench-scaling bench-scaling-distributed bench-online bench-sweep500 bench-harmonics bench-friction bench-friction-fine bench-exact bench-stability bench-nma bench-preload brb paper validate clean
+.PHONY: setup demo test test-portability test-trixie test-fast bench-robustness bench bench-corners bench-scaling bench-scaling-distributed bench-online bench-sweep500 bench-harmonics bench-friction bench-friction-fine bench-exact bench-stability bench-nma bench-preload brb paper validate clean
 
 setup:
 	@bash tools/setup.sh
@@ -13,6 +13,17 @@ demo: setup
 
 test: setup
 	$(PY) -m pytest -q tests
+
+# issue 51: the precision-sensitive tests under other CPU families' OpenBLAS kernels and one BLAS
+# thread, those this CPU can run (tools/test_portability.sh; --all for the whole suite). Not part of
+# `make test`: about 15 minutes per setting on 2 cores.
+test-portability: setup
+	bash tools/test_portability.sh
+
+# issue 52: the strong-separation sweeps of tests/test_corners.py under two OpenBLAS kernels and with
+# K perturbed by 1e-15 (5 seeds each): completion and the spread of the peaks (about 70 min of CPU)
+bench-robustness: setup
+	$(PY) benchmarks/robustness.py --out docs/benchmarks_robustness.md --cores host Haswell --seeds 5 --jobs 2
 
 # issue 20: the whole suite on Debian 13's stack (dolfinx 0.9, PETSc/SLEPc 3.22, numpy 2) inside a
 # Debian 13 root built by mmdebstrap in /work/trixie-root (TRIXIE_ROOT=...) the first time and reused

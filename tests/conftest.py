@@ -6,11 +6,31 @@ import mode puts this directory on sys.path before it imports this file as the m
 """
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import numpy as np
 
 from jointfem.models.lumped import ForceSpec, JenkinsSpec, LinkSpec, LumpedSpec, MassSpec
+
+# JOINTFEM_TEST_PERTURB_K=SEED (tools/test_portability.sh): every structure a scene builds has K's
+# entries changed at random by up to 1e-15 of themselves, symmetrically, as round-off on another
+# machine would change them (issue 51).  Off by default.
+if os.environ.get("JOINTFEM_TEST_PERTURB_K"):
+    import dataclasses
+
+    import jointfem.scene as _scene
+
+    _build = _scene._create_structure
+
+    def _perturbed(scene, _seed=int(os.environ["JOINTFEM_TEST_PERTURB_K"])):
+        s = _build(scene)
+        K = s.K.tocsr()
+        E = K.copy()
+        E.data = E.data * np.random.default_rng(_seed).uniform(-1e-15, 1e-15, E.data.size)
+        return dataclasses.replace(s, K=(K + 0.5 * (E + E.T)).tocsr())
+
+    _scene._create_structure = _perturbed
 
 ROOT = Path(__file__).resolve().parents[1]  # the repository: demos/ and the scenes are under it
 
