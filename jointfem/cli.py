@@ -369,8 +369,8 @@ def _signal_policy() -> None:
         return  # (main() called from a thread: signals are the main thread's)
     # a signal ignored when the run started stays ignored (nohup ignores SIGHUP; a shell's background
     # job SIGINT), as Python itself leaves an ignored SIGINT
-    for sig in (signal.SIGTERM, getattr(signal, "SIGHUP", None)):
-        if sig is not None and signal.getsignal(sig) == signal.SIG_DFL:
+    for sig in (signal.SIGTERM, signal.SIGHUP):
+        if signal.getsignal(sig) == signal.SIG_DFL:
             signal.signal(sig, _stop_on_signal)
 
 
