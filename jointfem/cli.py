@@ -361,23 +361,24 @@ def _interrupted_code() -> int:
     return 128 + int(_SIGNAL[0])
 
 
-def _signal_policy() -> None:
+def _signal_policy() -> dict:
     """One policy for every command: SIGINT raises KeyboardInterrupt (Python's own handler, which
     gmsh takes away: jointfem.fem.compat.restore_sigint puts it back), SIGTERM and SIGHUP likewise
-    (_stop_on_signal)."""
+    (_stop_on_signal).  Returns the handlers it replaced, which main() puts back when it returns:
+    a program that calls main() (a test, a script) keeps its own handling after it."""
     if threading.current_thread() is not threading.main_thread():
-        return  # (main() called from a thread: signals are the main thread's)
+        return {}  # (main() called from a thread: signals are the main thread's)
     # a signal ignored when the run started stays ignored (nohup ignores SIGHUP; a shell's background
     # job SIGINT), as Python itself leaves an ignored SIGINT
-    for sig in (signal.SIGTERM, signal.SIGHUP):
-        if signal.getsignal(sig) == signal.SIG_DFL:
-            signal.signal(sig, _stop_on_signal)
+    return {sig: signal.signal(sig, _stop_on_signal) for sig in (signal.SIGTERM, signal.SIGHUP)
+            if signal.getsignal(sig) == signal.SIG_DFL}
 
 
 def main(argv=None) -> int:
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
     args = build_parser().parse_args(argv)
-    _signal_policy()
+    _SIGNAL[0] = signal.SIGINT
+    replaced = _signal_policy()
     try:
         return args.func(args)
     except KeyboardInterrupt:  # outside a sweep (a sweep keeps its points and returns 130 itself)
@@ -390,6 +391,9 @@ def main(argv=None) -> int:
         if parallel.is_root():  # under mpirun every rank meets the same error: one line, not one per rank
             print(f"jointfem: error: {exc}", file=sys.stderr)
         return 2
+    finally:
+        for sig, handler in replaced.items():
+            signal.signal(sig, handler)
 
 
 if __name__ == "__main__":

@@ -262,6 +262,19 @@ def test_a_signal_keeps_a_continuum_sweeps_points(tmp_path, name, code):
     assert s["num_points"] >= 20
 
 
+def test_the_signal_policy_is_main_s_alone(tmp_path):
+    """cli.main() called from a program (a test, a script) puts back the SIGTERM and SIGHUP handlers
+    it found when it returns: the policy is the command's, not the caller's (the suite's own
+    pytest process once turned a SIGTERM into a KeyboardInterrupt after a test had called main)."""
+    import signal
+
+    from jointfem import cli
+
+    before = {s: signal.getsignal(s) for s in (signal.SIGTERM, signal.SIGHUP)}
+    assert cli.main(["frf", str(tmp_path / "missing.toml"), "--out", str(tmp_path / "out")]) == 2
+    assert {s: signal.getsignal(s) for s in before} == before
+
+
 def test_unwritable_output_is_refused_before_solving(tmp_path):
     """A file where the output folder should be: one line, exit 2, within the start-up time (no
     sweep: the scene would take minutes)."""
