@@ -21,7 +21,7 @@ test-portability: setup
 	bash tools/test_portability.sh
 
 # issue 52: the strong-separation sweeps of tests/test_corners.py under two OpenBLAS kernels and with
-# K perturbed by 1e-15 (5 seeds each): completion and the spread of the peaks (about 70 min of CPU)
+# K perturbed by 1e-15 (5 seeds each): completion and the spread of the peaks (over an hour of CPU: 80-225 s a run)
 bench-robustness: setup
 	$(PY) benchmarks/robustness.py --out docs/benchmarks_robustness.md --cores host Haswell --seeds 5 --jobs 2
 
