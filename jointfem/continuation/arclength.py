@@ -145,13 +145,14 @@ class ContinuationOptions:
     newton: NewtonOptions = field(default_factory=NewtonOptions)
 
 
-def _solve(A, b):
+def linear_solve(A, b):
+    """A x = b for a dense or sparse A (SuperLU)."""
     if sp.issparse(A):
         return spla.splu(A.tocsc()).solve(b)
     return np.linalg.solve(A, b)
 
 
-def _bordered(J, c, t):
+def bordered(J, c, t):
     """The matrix [[J, c], [t^T, 0]] (sparse if J is)."""
     if sp.issparse(J):
         return sp.bmat([[J, sp.csr_matrix(c[:, None])], [sp.csr_matrix(t[None, :-1]), sp.csr_matrix([[t[-1]]])]],
@@ -247,7 +248,7 @@ def _damped_newton(F, z0, opts: "NewtonOptions", what: str, lam_of):
             break  # no halving of the residual for this long: give up early (the step will shrink)
         if it == opts.max_iter:
             break
-        dz = _solve(A, -r)
+        dz = linear_solve(A, -r)
         if not np.all(np.isfinite(dz)):
             break
         norm0 = np.linalg.norm(r)
@@ -330,7 +331,7 @@ def hyperplane_derivative(fun: Callable, x: np.ndarray, lam: float, direction: t
     # at (x, lam) as given: a problem that keeps its last evaluation has the corrector's last one
     _, J, dl = fun(x, lam)
     J, dl = _scaled_jacobian(J, dl, space, lam_scale, 1.0)
-    w = _solve(_bordered(J, dl, d), np.append(np.zeros(J.shape[0]), d @ d))
+    w = linear_solve(bordered(J, dl, d), np.append(np.zeros(J.shape[0]), d @ d))
     return space.full(w[:-1]), float(w[-1] * lam_scale)
 
 
@@ -388,7 +389,7 @@ def _corrector(g, y_p, mu_p, t, opts: NewtonOptions, lam_scale: float = 1.0):
 
     def F(z):
         R, J, dl = g(z[:-1], z[-1])
-        return np.append(R, t @ (z - z_p)), _bordered(J, dl, t)
+        return np.append(R, t @ (z - z_p)), bordered(J, dl, t)
 
     z, it, res = _damped_newton(F, z_p.copy(), opts, "corrector", lambda z: z[-1] * lam_scale)
     return z[:-1], z[-1], it, res
@@ -425,7 +426,7 @@ def _tangent(J, dl, t_prev):
     """The unit tangent (oriented along t_prev) and the sign of det [[J, dl], [t_prev^T]]: the
     orientation of the branch, constant along it between bifurcation points, so a corrector that
     lands on another branch of the same shape shows as a change of sign."""
-    t, sign = _solve_with_sign(_bordered(J, dl, t_prev), np.append(np.zeros(J.shape[0]), 1.0))
+    t, sign = _solve_with_sign(bordered(J, dl, t_prev), np.append(np.zeros(J.shape[0]), 1.0))
     return t / np.linalg.norm(t), sign
 
 
@@ -599,7 +600,7 @@ def continue_branch(fun: Callable, x0: np.ndarray, lam0: float, lam_end: float, 
         R, J, dl = g(z[:-1], z[-1])
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            return _solve_with_sign(_bordered(J, dl, d), np.append(np.zeros(J.shape[0]), 1.0))[1], J, dl
+            return _solve_with_sign(bordered(J, dl, d), np.append(np.zeros(J.shape[0]), 1.0))[1], J, dl
 
     def beyond(d, ds):
         """A fold on a kink within ds along d: the orientation of the branch flips between the last
