@@ -18,18 +18,17 @@ the second harmonic alone reads 6e-19 on the slipping SDOF oscillator, whose thi
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import TYPE_CHECKING, Callable
+from dataclasses import dataclass, replace
+from typing import Callable
 
 import numpy as np
-import scipy.sparse as sp
 
 from ..contact.law import ContactResult
-from ..continuation.arclength import bordered, linear_solve
+from ..continuation.arclength import (ContinuationError, ContinuationOptions, ContinuationPoint, ConvergenceError,
+                                      NewtonOptions, continue_branch, solve_adaptive)
 from ..harmonics import Harmonics
-
-if TYPE_CHECKING:
-    from ..hbm.problem import Problem
+from ..hbm.problem import Problem, newton_system
+from .peaks import Peak, locate_peaks
 
 
 def top_harmonic_share(contact: list[ContactResult], harmonics: Harmonics, *, top: int = 2) -> float:
@@ -50,22 +49,28 @@ def top_harmonic_share(contact: list[ContactResult], harmonics: Harmonics, *, to
 # ---- the truncation error of the response --------------------------------------------------------
 #
 # The converged point x at (H, N), padded with zeros for the harmonics H+1..H2, is a point of the
-# same problem at (H2, N2) with a residual: the contact forces' harmonics above H (which no retained
-# equation balances) and, in the retained ones, the change of the AFT from N to N2 samples.  One
-# Newton step of the (H2, N2) problem from there, x2 = x + dx, is the linearised answer of the
-# larger truncation; what it changes in an output is the estimate of the error of (H, N).  The step
-# may be bordered by the branch's direction (the corrector's hyperplane), so that near a fold, where
-# the Jacobian at fixed omega is singular, it measures the distance between the two curves rather
-# than a slide along them.  A superharmonic resonance shows: the harmonic k of the forces drives
-# the dynamic stiffness of harmonic k near its zero, and dx is large there.  A second step says
-# whether the first can be trusted as a linearisation (its contraction).
+# same problem at (H2, N2) with a residual R2(x0): the contact forces' harmonics above H (which no
+# retained equation balances) and, in the retained ones, the change of the AFT from N to N2 samples.
+# The Newton homotopy R2(y) - (1 - theta) R2(x0) = 0, followed by arclength continuation from
+# (x0, theta = 0) to theta = 1, ends on the solution at (H2, N2) that the point becomes when the
+# missing harmonics are let in; what that changes in an output is the estimate of the error of (H, N).
+# Where the point is near that solution the path is one Newton step long (its first step is the
+# linearised correction).  Where the point is an artefact of the truncation (a loop that more
+# harmonics remove), no solution at (H2, N2) continues it: the path turns back in theta, and the
+# point is reported as not connected (its error is not known, and larger than the estimate could
+# tell).  A superharmonic resonance shows: the harmonic k of the forces drives the dynamic
+# stiffness of harmonic k near its zero, and the path's end is far.
+#
+# A peak's error is not the change at its frequency where the top is a fold (the beam's top at 3 N
+# holds three solutions within 0.07 rad/s): ``TruncationEstimator.peak`` follows the (H2, N2)
+# branch from the homotopy's end across a span of omega each side and locates its peak there
+# (analysis.peaks).
 #
 # Measured (docs/benchmarks_truncation.md): within 0.37-1.29 of the true error at the located peaks
 # of the SDOF Jenkins oscillator and of two masses at a 3:1 superharmonic resonance, H = 1 to 9.
-# It is a local estimate: it sees the error where the orbit at H is near the one at 3H.  On the
-# beam at 3 N, whose impacts converge erratically in H (its peak moves by -5 %, -7 %, -4.5 %, ...
-# from H = 5 to 15), the orbit at H = 5 lies on an artefact loop that more harmonics remove, and the
-# step from it measures the distance to a nearby orbit at 3H that is not the answer.
+# On the beam at 3 N, whose impacts converge erratically in H (its peak moves by -5 %, -7 %, -4.5 %,
+# ... from H = 5 to 15), the peak at H = 5 lies on an artefact loop: the homotopy to H = 15 or 41
+# turns back (not connected).
 
 def output_signal(x: np.ndarray, dof, harmonics: Harmonics) -> np.ndarray:
     """An output's harmonic coefficients (num_hc,) from coefficients x (index or recovery row)."""
@@ -82,28 +87,35 @@ def amplitude_and_rms(coeffs: np.ndarray, harmonics: Harmonics) -> tuple[float, 
 
 @dataclass(frozen=True)
 class TruncationError:
-    """The estimated error of one point, per output (in the order of ``outputs``): ``amplitude`` and
-    ``rms`` are the (H2, N2) correction's change of the first-harmonic amplitude and of the RMS over
-    a period, m (signed: the better answer minus the point's).  ``contraction``: the size of the
-    second Newton step over the first's (scaled norms); the estimate is the linearised answer only
-    where this is small (``reliable``: below ``RELIABLE_CONTRACTION``).  ``harmonics_to``: (H2, N2)."""
+    """The estimated error of one point at fixed omega, per output (in the order of ``outputs``):
+    ``amplitude`` and ``rms``, the change of the first-harmonic amplitude and of the RMS over a
+    period from the point to the (H2, N2) solution it continues to, m (signed: the better answer
+    minus the point's; zero where not ``connected``).  ``connected``: the homotopy reached theta = 1;
+    ``theta``: how far it got; ``folds``: how often it turned back in theta on the way (0 on every
+    connected point measured but the beam's at H = 21 to 2H); ``x_to``: the (H2, N2) solution."""
 
     amplitude: np.ndarray
     rms: np.ndarray
-    contraction: float
+    connected: bool
+    theta: float
+    folds: int
     harmonics_to: Harmonics
-
-    @property
-    def reliable(self) -> bool:
-        return bool(self.contraction <= RELIABLE_CONTRACTION)
+    x_to: np.ndarray | None = None
 
 
-# Newton's second step at most this fraction of its first: the correction is then known to within
-# about that fraction of itself (the steps of a contracting iteration shrink geometrically).  On the
-# SDOF Jenkins oscillator and the two masses of tests/test_convergence.py the ratio is at most 0.2
-# (measured) where the estimate is within 1.3x of the truth; where it passes 0.5 the step left the
-# region in which one linearisation holds (the impacting beam, docs/theory.md).
-RELIABLE_CONTRACTION = 0.5
+@dataclass(frozen=True)
+class PeakError:
+    """A located peak at H against the same peak at (H2, N2): ``peak``, the (H2, N2) branch's
+    located peak within ``span`` of the H peak's omega (None where the homotopy did not connect or
+    no peak lies in the span); ``at_omega``, the estimate at the H peak's frequency."""
+
+    peak: Peak | None
+    at_omega: TruncationError
+    reason: str = ""
+
+
+class _TurnedBack(Exception):
+    pass
 
 
 def estimate_harmonics(harmonics: Harmonics, *, factor: int = 3) -> Harmonics:
@@ -116,20 +128,25 @@ def estimate_harmonics(harmonics: Harmonics, *, factor: int = 3) -> Harmonics:
 
 
 class TruncationEstimator:
-    """The estimate of this section for the points of one problem: ``problem_at`` builds the same
-    problem at other harmonics (analysis.frf.create_problem of the model); ``outputs``, name ->
-    index or recovery row of the problem's coordinates; ``x_scale``, ``lam_scale``: the branch's
-    scales (hbm.problem.Scales), in which the border is orthogonal and the steps are measured."""
+    """The estimate of this section for the points of one problem solved at ``harmonics``:
+    ``problem_at(h)`` builds the same problem at other harmonics (analysis.frf.create_problem of
+    its model); ``window``: the sweep's (omega_start, omega_end) in rad/s (the (H2, N2) problem's
+    scales); ``outputs``: name -> index or recovery row of the coordinates.
+    ``max_folds``: the homotopy gives up (not connected) once it has turned back this often;
+    ``max_points``: its budget of points."""
 
-    def __init__(self, problem_at: Callable[[Harmonics], "Problem"], harmonics: Harmonics, outputs: dict, *,
-                 x_scale: np.ndarray, lam_scale: float, factor: int = 3):
+    def __init__(self, problem_at: Callable[[Harmonics], Problem], harmonics: Harmonics, outputs: dict, *,
+                 window: tuple[float, float], factor: int = 3, max_folds: int = 4, max_points: int = 400,
+                 newton: NewtonOptions = NewtonOptions()):
         self.h = harmonics
         self.h2 = estimate_harmonics(harmonics, factor=factor)
-        self.problem = problem_at(self.h2)
+        self.problem: Problem = problem_at(self.h2)
         self.outputs = dict(outputs)
-        self.q = x_scale.size // harmonics.num_hc
-        self.x_scale = np.tile(np.asarray(x_scale)[: self.q], self.h2.num_hc)
-        self.lam_scale = float(lam_scale)
+        self.scales = self.problem.scales(*window)
+        self.lam_scale = abs(window[1] - window[0])
+        self.q = self.problem.num_coefficients // self.h2.num_hc
+        self.max_folds, self.max_points = max_folds, max_points
+        self.newton = replace(newton, tol=max(newton.tol, self.problem.tol_floor))
 
     def pad(self, x: np.ndarray) -> np.ndarray:
         """x at H as coefficients at H2 (the harmonics above H zero)."""
@@ -137,54 +154,93 @@ class TruncationEstimator:
         x2[: x.size] = x
         return x2
 
-    def _step(self, x2: np.ndarray, lam: float, border: np.ndarray | None, offset: float):
-        """One Newton step of the (H2, N2) problem at (x2, lam): (dx, dlam, scaled norm of the step).
-        With ``border`` (unit, scaled), the step keeps border . (dy, dlam) = -offset."""
-        pb = self.problem
-        adapt = pb.adaptation
-        if adapt is not None:
-            adapt.restore(adapt.state_of(x2))
-        sel = pb.unknowns()
-        sel = np.arange(x2.size) if sel is None else np.asarray(sel)
-        ev = pb.evaluate(x2, lam, jacobian=True)
-        xs = self.x_scale[sel]
-        J = (ev.J @ sp.diags(xs)).tocsc() if sp.issparse(ev.J) else ev.J * xs
-        if border is None:
-            dy, dl = linear_solve(J, -ev.R), 0.0
-        else:
-            z = linear_solve(bordered(J, ev.dR_dlam * self.lam_scale, border[np.append(sel, -1)]),
-                             np.append(-ev.R, -offset))
-            dy, dl = z[:-1], z[-1]
-        if not (np.all(np.isfinite(dy)) and np.isfinite(dl)):
-            raise np.linalg.LinAlgError("the truncation estimate's Newton step is not finite (a singular Jacobian at H2)")
-        dx = np.zeros(x2.size)
-        dx[sel] = dy * xs
-        return dx, dl * self.lam_scale, float(np.hypot(np.linalg.norm(dy), dl))
-
-    def __call__(self, x: np.ndarray, lam: float, direction: tuple[np.ndarray, float] | None = None
-                 ) -> TruncationError:
-        """The estimate at the converged point (x, lam) of the problem at H: two Newton steps of the
-        (H2, N2) problem from x padded, the second to measure how far the first can be trusted.
-        ``direction``: the branch's direction there (dx, dlam), to border the steps (the
-        corrector's hyperplane: near a fold the Jacobian at fixed lam is singular), or None for
-        steps at fixed lam."""
-        x0 = self.pad(x)
-        border = None
-        if direction is not None:
-            t = np.append(self.pad(direction[0]) / self.x_scale, direction[1] / self.lam_scale)
-            border = t / max(np.linalg.norm(t), 1e-300)
-        dx1, dl1, n1 = self._step(x0, lam, border, 0.0)
-        x1, lam1 = x0 + dx1, lam + dl1
-        offset = 0.0 if border is None else float(border @ np.append(dx1 / self.x_scale, dl1 / self.lam_scale))
-        try:
-            dx2, dl2, n2 = self._step(x1, lam1, border, offset)
-            contraction = n2 / n1 if n1 > 0 else 0.0
-        except np.linalg.LinAlgError:
-            dx2, dl2, contraction = np.zeros_like(dx1), 0.0, np.inf
+    def _changes(self, x0: np.ndarray, x1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         amp, rms = [], []
         for dof in self.outputs.values():
             a0, r0 = amplitude_and_rms(output_signal(x0, dof, self.h2), self.h2)
             a1, r1 = amplitude_and_rms(output_signal(x1, dof, self.h2), self.h2)
             amp.append(a1 - a0)
             rms.append(r1 - r0)
-        return TruncationError(np.array(amp), np.array(rms), float(contraction), self.h2)
+        return np.array(amp), np.array(rms)
+
+    def __call__(self, x: np.ndarray, lam: float) -> TruncationError:
+        """The estimate at the converged point (x, lam) of the model at H (see the section's comment)."""
+        pb = self.problem
+        adapt = pb.adaptation
+        x0 = self.pad(x)
+        if adapt is not None:
+            adapt.restore(adapt.state_of(x0))
+        start: dict[bytes, np.ndarray] = {}  # R2(x0) in the rows of each set of unknowns met
+
+        def fun(y, theta):
+            sel = pb.unknowns()
+            key = b"" if sel is None else np.asarray(sel).tobytes()
+            if key not in start:
+                start[key] = pb.evaluate(x0, lam, jacobian=False).R
+            ev = pb.evaluate(y, lam, jacobian=True)
+            return ev.R - (1.0 - theta) * start[key], ev.J, start[key]
+
+        thetas = [0.0]
+        folds = [0]
+
+        def watch(point: ContinuationPoint):
+            if len(thetas) >= 2 and (point.lam - thetas[-1]) * (thetas[-1] - thetas[-2]) < 0:
+                folds[0] += 1
+                if folds[0] > self.max_folds:
+                    raise _TurnedBack
+            thetas.append(point.lam)
+
+        sc = self.scales
+        opts = ContinuationOptions(lam_bounds=(-0.5, 1.5), max_points=self.max_points, newton=self.newton,
+                                   max_leaps=0)
+        zero = np.zeros(len(self.outputs))
+        try:
+            points = continue_branch(fun, x0, 0.0, 1.0, x_scale=sc.x, lam_scale=1.0, r_scale=sc.r, options=opts,
+                                     callback=watch, adapt=adapt)
+        except (ContinuationError, ConvergenceError, _TurnedBack, np.linalg.LinAlgError):
+            return TruncationError(zero, zero, False, float(max(thetas)), folds[0], self.h2)
+        try:  # the last point has passed theta = 1: Newton there from it
+            x1, _ = solve_adaptive(fun, points[-1].x, 1.0, adapt=adapt, x_scale=sc.x, r_scale=sc.r,
+                                   options=self.newton)
+        except ConvergenceError:
+            return TruncationError(zero, zero, False, float(max(thetas)), folds[0], self.h2)
+        amp, rms = self._changes(x0, x1)
+        return TruncationError(amp, rms, True, 1.0, folds[0], self.h2, x1)
+
+    def peak(self, x: np.ndarray, lam: float, name: str, *, span: float) -> PeakError:
+        """The located peak of output ``name`` at (H2, N2) near the located peak (x, lam) at H: the
+        homotopy at lam, then the (H2, N2) branch followed from its end to lam - span and to
+        lam + span (rad/s), and its peak located there (analysis.peaks)."""
+        at = self(x, lam)
+        if not at.connected:
+            return PeakError(None, at, f"the homotopy to H = {self.h2.H} reached theta = {at.theta:.3g} at most, turning "
+                                       f"back {at.folds} times: the point at H = {self.h.H} continues to no solution there")
+        pb = self.problem
+        adapt = pb.adaptation
+        sc = self.scales
+
+        def record(y, w):
+            return pb.record(y, w, pb.evaluate(y, w, jacobian=False))
+
+        # (steps measured in the span, not the sweep's window: a few tens of points each side)
+        opts = ContinuationOptions(lam_bounds=(lam - 3 * span, lam + 3 * span), max_rel_change=1.0, newton=self.newton,
+                                   max_points=self.max_points)
+        halves = []
+        for end in (lam - span, lam + span):
+            if adapt is not None:
+                adapt.restore(adapt.state_of(at.x_to))
+            try:
+                halves.append(continue_branch(newton_system(pb), at.x_to, lam, end, x_scale=sc.x, lam_scale=span,
+                                              r_scale=sc.r, options=opts, extra=record, adapt=adapt))
+            except ContinuationError as exc:
+                halves.append(exc.points)
+        points = halves[0][::-1] + halves[1][1:]
+        if len(points) < 3:
+            return PeakError(None, at, f"the branch at H = {self.h2.H} could not be followed from the homotopy's end")
+        X = np.array([p.x for p in points])
+        omega = np.array([p.lam for p in points])
+        found = locate_peaks(pb, X, omega, np.array([p.residual for p in points]), [p.extra for p in points],
+                             {name: self.outputs[name]}, scales=sc, lam_scale=span, newton=self.newton)[name]
+        if not found.located:
+            return PeakError(None, at, f"no peak within {span:g} rad/s at H = {self.h2.H}: {found.reason}")
+        return PeakError(found, at)
