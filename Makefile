@@ -2,7 +2,7 @@
 PY := .venv/bin/python
 MPIRUN := mpirun $(if $(filter 0,$(shell id -u)),--allow-run-as-root) --oversubscribe
 
-.PHONY: setup demo test test-portability test-trixie test-fast bench-robustness bench bench-corners bench-scaling bench-scaling-distributed bench-online bench-sweep500 bench-harmonics bench-friction bench-friction-fine bench-exact bench-stability bench-nma bench-preload brb paper validate clean
+.PHONY: setup demo test test-portability test-trixie test-fast bench-robustness bench bench-corners bench-scaling bench-scaling-distributed bench-online bench-sweep500 bench-harmonics bench-truncation bench-friction bench-friction-fine bench-exact bench-stability bench-nma bench-preload brb paper validate clean
 
 setup:
 	@bash tools/setup.sh
@@ -69,6 +69,12 @@ bench-online: setup
 
 # issue 14's harmonic convergence: the beam at 3 N, exact condensation with the event-accurate AFT,
 # H = 3 to 41 (docs/benchmarks_harmonics.md)
+# issue 46's truncation estimate against the truth at the located peaks: the SDOF Jenkins oscillator,
+# two masses at a 3:1 superharmonic resonance, the beam at 3 N (docs/benchmarks_truncation.md; the
+# lumped cases in a minute, the beam in about 12 min)
+bench-truncation: setup
+	$(PY) benchmarks/truncation.py --out docs/benchmarks_truncation.md
+
 bench-harmonics: setup
 	$(PY) benchmarks/harmonics.py --out docs/benchmarks_harmonics.md --jobs 2
 

@@ -66,11 +66,12 @@ def top_harmonic_share(contact: list[ContactResult], harmonics: Harmonics, *, to
 # branch from the homotopy's end across a span of omega each side and locates its peak there
 # (analysis.peaks).
 #
-# Measured (docs/benchmarks_truncation.md): within 0.37-1.29 of the true error at the located peaks
-# of the SDOF Jenkins oscillator and of two masses at a 3:1 superharmonic resonance, H = 1 to 9.
-# On the beam at 3 N, whose impacts converge erratically in H (its peak moves by -5 %, -7 %, -4.5 %,
-# ... from H = 5 to 15), the peak at H = 5 lies on an artefact loop: the homotopy to H = 15 or 41
-# turns back (not connected).
+# Measured (docs/benchmarks_truncation.md): within 0.65-1.14 of the true error of the located peaks
+# of the SDOF Jenkins oscillator and of two masses at a 3:1 superharmonic resonance, H = 1 to 9
+# (amplitude, and RMS at the peak's frequency), and 1.02 on the beam at 3 N at H = 21.  Below that
+# the beam's impacts converge erratically in H (its peak moves by -5 %, -7 %, -4.5 %, ... from
+# H = 5 to 15): its peaks at H = 5, 9 and 13 lie on loops that more harmonics remove, and the
+# homotopy from each turns back (not connected).
 
 def output_signal(x: np.ndarray, dof, harmonics: Harmonics) -> np.ndarray:
     """An output's harmonic coefficients (num_hc,) from coefficients x (index or recovery row)."""
