@@ -157,7 +157,7 @@ def run_case(case: str) -> list[dict]:
 
 
 # the span of omega each side of the peak at H in which the peak at (H2, N2) is sought, of omega
-SPAN = 2e-3
+from jointfem.analysis.convergence import PEAK_SPAN as SPAN  # noqa: E402  (the sweeps' own)
 
 
 def ratio(est: float | None, true: float | None) -> str:

@@ -99,7 +99,7 @@ def sweep_options(scene: Scene, *, stability: str = "auto") -> SweepOptions:
     """The scene's [solver] table as the FRF's options; ``stability``: auto, on or off."""
     s = scene.solver
     return SweepOptions(
-        stability=STABILITY[stability], omega_limits=s.omega_limits,
+        stability=STABILITY[stability], omega_limits=s.omega_limits, peak_error=s.peak_error,
         omega_start=s.omega_start, omega_end=s.omega_end, harmonics=Harmonics(s.harmonics, s.samples),
         continuation=ContinuationOptions(ds0=s.ds0, ds_min=s.ds_min, ds_max=s.ds_max, max_points=s.max_points,
                                          time_limit=s.time_limit,

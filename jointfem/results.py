@@ -75,6 +75,20 @@ class FrequencyResponse:
         return np.stack([(self.states == s).mean(axis=1) for s in range(3)], axis=-1)
 
 
+def truncation_summary(err, amplitude: float, omega: float, index: int) -> dict:
+    """summary.json's record of an analysis.convergence.PeakError of the peak (omega, amplitude) of
+    the output ``index``: the changes to the (H2, N2) peak (better minus this) and of the RMS at
+    omega, or why there are none (null, not NaN)."""
+    at = err.at_omega
+    out = {"to_harmonics": at.harmonics_to.H, "to_samples": at.harmonics_to.N, "connected": at.connected,
+           "amp1_m": None, "omega_rad_s": None, "rms_at_omega_m": float(at.rms[index]) if at.connected else None}
+    if err.peak is not None:
+        out.update(amp1_m=err.peak.amplitude - amplitude, omega_rad_s=err.peak.omega - omega)
+    if err.reason:
+        out["reason"] = err.reason
+    return out
+
+
 def parabola_peak(omega: np.ndarray, amp: np.ndarray) -> tuple[float, float]:
     """(omega, amplitude) of the largest amplitude, refined by the parabola through it and its two
     neighbours when that parabola has its top within one step of the point."""
@@ -173,6 +187,9 @@ def save_frf(frf: FrequencyResponse, out: Path, *, summary: dict) -> dict:
         if located is not None:  # how it was found: solved between the points, or the range's edge
             peaks[name].update(located=located.located, edge=located.edge, solves=located.solves,
                                residual=located.residual, **({"reason": located.reason} if located.reason else {}))
+        err = frf.info.get("peak_errors", {}).get(name)
+        if err is not None:  # the same peak at (3H, 2N): the estimate of this one's truncation error
+            peaks[name]["truncation_error"] = truncation_summary(err, a, w, list(frf.outputs).index(name))
     summary = dict(summary)
     summary.update({"num_points": int(frf.num_points), "newton_iterations_total": int(frf.iterations.sum()),
                     "peaks": peaks})

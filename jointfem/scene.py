@@ -64,6 +64,8 @@ class SolverSpec:
     # the band a branch may leave the sweep window into at a fold and still come back from (rad/s);
     # None: an octave each side of the window (jointfem.analysis.frf.default_omega_limits)
     omega_limits: tuple[float, float] | None = None
+    # each located peak's truncation error, by the same peak at (3H, 2N) (analysis.frf.SweepOptions)
+    peak_error: bool = False
 
     @property
     def omega_start(self) -> float:
@@ -163,6 +165,12 @@ class _Table:
             self.fail(k, v, f"must be one of {', '.join(choices)}")
         return v
 
+    def boolean(self, k: str, default=_REQUIRED) -> bool:
+        v = self.raw(k, default)
+        if not isinstance(v, bool):
+            self.fail(k, v, "must be true or false")
+        return v
+
     def strings(self, k: str, default=_REQUIRED, *, min_len=1, max_len=None) -> tuple[str, ...]:
         v = self.raw(k, default)
         if v is default and default is not _REQUIRED:
@@ -246,7 +254,7 @@ def _solver(t: _Table) -> SolverSpec:
         kink_tol=t.number("kink_tol", SolverSpec.kink_tol, gt=0),
         time_limit=t.number("time_limit", SolverSpec.time_limit, gt=0), harmonics_auto=auto, harmonic_target=target,
         harmonics_max=H_max, samples_given=t.has("samples"), aft=t.string("aft", "sampled", choices=AFT_KINDS),
-        omega_limits=limits)
+        omega_limits=limits, peak_error=t.boolean("peak_error", False))
     if spec.kink_tol > 1e-3:
         t.fail("kink_tol", spec.kink_tol, "must be <= 1e-3 (a residual of 0.1 % of the force)")
     if not spec.ds_min <= spec.ds0 <= spec.ds_max:

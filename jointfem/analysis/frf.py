@@ -16,7 +16,7 @@ from ..hbm.problem import Problem, newton_system
 from ..models.structure import Structure
 from ..results import FrequencyResponse
 from ..rom.common import Reduction
-from .convergence import top_harmonic_share
+from .convergence import PEAK_SPAN, TruncationEstimator, top_harmonic_share
 from .peaks import locate_peaks
 from .stability import is_stable, leading_exponent
 
@@ -41,6 +41,10 @@ class SweepOptions:
     # the band (rad/s) the branch may leave the window into at a fold and still come back from; None:
     # the window widened by its span on each side (continuation.lam_bounds, if set, wins)
     omega_limits: tuple[float, float] | None = None
+    # each located peak's truncation error: the same peak at (3H, 2N) by analysis.convergence's
+    # TruncationEstimator.peak (info["peak_errors"]); off by default: on the beam at 3 N it costs
+    # 30-230 s a peak beside a 8-40 s sweep (docs/benchmarks_truncation.md)
+    peak_error: bool = False
 
 
 class SweepIncomplete(ContinuationError):
@@ -185,6 +189,14 @@ def compute_frf(model: Structure | Reduction, options: SweepOptions, *,
                              lam_scale=lam_scale, newton=cont.newton)
     t_online = time.perf_counter() - t1
     t_peaks = time.perf_counter() - t_peaks
+    peak_errors = {}
+    if options.peak_error and any(p.located for p in peaks.values()):
+        t_err = time.perf_counter()
+        estimate = TruncationEstimator(lambda hh: create_problem(model, hh), h, layout.outputs,
+                                       window=(options.omega_start, options.omega_end), newton=cont.newton)
+        peak_errors = {name: estimate.peak(p.x, p.omega, name, span=PEAK_SPAN * p.omega)
+                       for name, p in peaks.items() if p.located}
+        t_err = time.perf_counter() - t_err
     unknowns = np.array([r.unknowns for r in records])
     # the largest system Newton solved on the branch (the penalty ROM's changes along it: per point
     # in arrays["unknowns"])
@@ -206,6 +218,9 @@ def compute_frf(model: Structure | Reduction, options: SweepOptions, *,
                        "pair_peak_normal_N": np.array([r.pair_summary[:, 2] for r in records])}}
     if peaks:
         info["peaks"] = peaks
+    if peak_errors:
+        info["peak_errors"] = peak_errors  # name -> analysis.convergence.PeakError
+        info["time_peak_error_s"] = t_err
     he = np.array([r.harmonic_error for r in records])
     info["arrays"]["harmonic_error"] = he
     if he.max() > options.harmonic_tol:

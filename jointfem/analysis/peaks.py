@@ -40,7 +40,7 @@ reported as such.
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -81,6 +81,7 @@ class Peak:
     solves: int = 0  # corrector solves spent
     residual: float = 0.0  # achieved max|R|/r_scale at the located point
     reason: str = ""
+    x: np.ndarray | None = field(default=None, repr=False, compare=False)  # the solution there (located)
 
 
 def _output(x: np.ndarray, dof, harmonics: Harmonics) -> np.ndarray:
@@ -172,7 +173,7 @@ def _locate(segments: _Segments, records, dof, *, grid: int, omega_rtol: float) 
         return Peak(float(lam[i]), float(amp[i]), located=False, edge=True,
                     reason="largest amplitude at the end of the range: an edge, not a peak")
     adapt = problem.adaptation
-    best = (float(amp[i]), float(lam[i]), float(segments.residual[i]))  # amplitude, omega, residual
+    best = (float(amp[i]), float(lam[i]), float(segments.residual[i]), x[i])  # amplitude, omega, residual, x
     A: dict[float, float] = {}  # s -> amplitude of every point solved (s = k + t: t along segment k)
     D: dict[float, float] = {}  # s -> |dA/ds| there, of the smooth piece through the point
     states: dict[float, bytes] = {}  # s -> the contact states there, every sample of every group
@@ -190,7 +191,7 @@ def _locate(segments: _Segments, records, dof, *, grid: int, omega_rtol: float) 
                 D[s] = np.nan  # bounded as steeply as anywhere (below)
         states[s] = b"".join(c.state_t.tobytes() for c in problem.evaluate(xs, ls, jacobian=False).contact)
         if a > best[0]:
-            best = (a, ls, res)
+            best = (a, ls, res, xs)
 
     def restore(lo: int, hi: int) -> None:
         if adapt is not None:
@@ -252,7 +253,7 @@ def _locate(segments: _Segments, records, dof, *, grid: int, omega_rtol: float) 
     except (ConvergenceError, ContinuationError, np.linalg.LinAlgError, RuntimeError) as exc:
         log.warning("peak not located between omega = %.9g and %.9g: %s", lam[lo], lam[hi], exc)
         return Peak(float(lam[i]), float(amp[i]), located=False, reason=str(exc))
-    return Peak(best[1], best[0], located=True, residual=best[2])
+    return Peak(best[1], best[0], located=True, residual=best[2], x=np.array(best[3]))
 
 
 def _with_neighbours(v: np.ndarray) -> np.ndarray:
