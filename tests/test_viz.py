@@ -137,16 +137,24 @@ def test_plot_cli_errors(tmp_path, separating, capsys):
 
 def test_frf_picture_has_rom_size_axis(separating):
     """frf.png of a penalty-ROM run: the size asked for (7.5 x 6.5 in at 120 dpi), not blank, with
-    the ROM size's grey (0.35) on its second axis, which a full-order run's picture lacks."""
+    the ROM size on a second axis (its labels right of the lower panel), which a run of fixed size lacks."""
     from jointfem.results import load_branch
 
     img = _png(separating / "frf.png")
     assert img.shape[:2] == (780, 900)
     assert img.reshape(-1, 3).std(axis=0).max() > 10
-    grey = int(np.all(img == 89, axis=2).sum())  # matplotlib "0.35" = (89, 89, 89)
     sizes = load_branch(separating / "branch.npz")["rom_size"]
     assert sizes.max() > sizes.min()  # the active set changed along the branch, so the axis is drawn
-    assert grey > 100  # measured: 245 with the axis, 12-16 in pictures without it
+    # the second axis's tick labels and label lie right of the lower panel's right spine (the
+    # rightmost column dark over half the panel's height): measured 458-794 dark pixels there in
+    # pictures with the axis, 0-49 without (every frf.png of a suite run, 2026-12-06).  Not the exact
+    # grey of its dotted line: how many pixels keep it depends on where the line falls between pixel
+    # rows (245 on one machine, 19 under OpenBLAS's Sandybridge kernel on another, same axis drawn)
+    dark = img.astype(float).mean(axis=2) < 128
+    lower = dark[img.shape[0] // 2:]
+    counts = lower.sum(axis=0)
+    spine = int(np.flatnonzero(counts > 0.5 * counts.max()).max())
+    assert int(lower[:, spine + 2:].sum()) > 200
 
 def test_paraview_export_holds_the_solved_fields(tmp_path):
     """`jointfem export` at a point of a continuum run: field_<i>.vtu carries every node's harmonics
