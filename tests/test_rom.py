@@ -180,14 +180,18 @@ def test_violation_check_flags_an_inactive_pair():
 
 @pytest.mark.parametrize("method", ["cb", "rubin", "macneal", "dcb", "cc", "tvd"])
 def test_cms_frequencies_converge(method):
-    """Each reference ROM's stuck frequencies approach the full model's as modes are added."""
+    """Each reference ROM's stuck frequencies approach the full model's as modes are added: the
+    error with 40 modes is below 1e-3 and not above that with 12, unless both lie at the
+    eigensolver's round-off (below 1e-10): the TVD basis is exact for these nine frequencies from
+    12 modes on (1.3636e-12, 1.3638e-12, 1.3638e-12 under OPENBLAS_NUM_THREADS=1, where "not above"
+    failed by 2e-16 of the frequency, issue 51)."""
     s = create_beam2d(Beam2DSpec(**RAYLEIGH))
     w_ref = np.sqrt(eigen(s.K_lin, s.M, 9)[0])
     errs = []
     for modes in (12, 20, 40):
         rom = build_rom(s, method, RomOptions(modes=modes, tvd=3 if method == "tvd" else 0))
         errs.append(np.abs(rom.natural_frequencies(9) / w_ref - 1).max())
-    assert errs[-1] < 1e-3 and errs[-1] <= errs[0], errs
+    assert errs[-1] < 1e-3 and errs[-1] <= max(errs[0], 1e-10), errs
 
 
 def test_cb_with_every_mode_is_exact():
