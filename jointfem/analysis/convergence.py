@@ -28,7 +28,7 @@ from ..continuation.arclength import (ContinuationError, ContinuationOptions, Co
                                       NewtonOptions, continue_branch, solve_adaptive)
 from ..harmonics import Harmonics
 from ..hbm.problem import Problem, newton_system
-from .peaks import Peak, locate_peaks
+from .peaks import Peak, locate_peaks, output_signal
 
 
 def top_harmonic_share(contact: list[ContactResult], harmonics: Harmonics, *, top: int = 2) -> float:
@@ -72,12 +72,6 @@ def top_harmonic_share(contact: list[ContactResult], harmonics: Harmonics, *, to
 # the beam's impacts converge erratically in H (its peak moves by -5 %, -7 %, -4.5 %, ... from
 # H = 5 to 15): its peaks at H = 5, 9 and 13 lie on loops that more harmonics remove, and the
 # homotopy from each turns back (not connected).
-
-def output_signal(x: np.ndarray, dof, harmonics: Harmonics) -> np.ndarray:
-    """An output's harmonic coefficients (num_hc,) from coefficients x (index or recovery row)."""
-    X = np.asarray(x).reshape(harmonics.num_hc, -1)
-    return X @ dof if np.ndim(dof) else X[:, dof]
-
 
 def amplitude_and_rms(coeffs: np.ndarray, harmonics: Harmonics) -> tuple[float, float]:
     """(first-harmonic amplitude, RMS over a period) of one signal's coefficients (num_hc,)."""

@@ -84,7 +84,7 @@ class Peak:
     x: np.ndarray | None = field(default=None, repr=False, compare=False)  # the solution there (located)
 
 
-def _output(x: np.ndarray, dof, harmonics: Harmonics) -> np.ndarray:
+def output_signal(x: np.ndarray, dof, harmonics: Harmonics) -> np.ndarray:
     """An output's harmonic coefficients (num_hc,) from coefficients x (index or recovery row)."""
     X = x.reshape(harmonics.num_hc, -1)
     return X @ dof if np.ndim(dof) else X[:, dof]
@@ -92,14 +92,14 @@ def _output(x: np.ndarray, dof, harmonics: Harmonics) -> np.ndarray:
 
 def output_amplitude(x: np.ndarray, dof, harmonics: Harmonics) -> float:
     """First-harmonic amplitude of an output (index or recovery row) of coefficients x."""
-    return float(harmonics.amplitude(_output(x, dof, harmonics), 1))
+    return float(harmonics.amplitude(output_signal(x, dof, harmonics), 1))
 
 
 def output_amplitude_derivative(x: np.ndarray, dx: np.ndarray, dof, harmonics: Harmonics) -> float:
     """d/de of output_amplitude(x + e dx) at e = 0 (the amplitude sqrt(c^2 + s^2) of the first
     harmonic's coefficients, linear in x)."""
     (c, s), (dc, ds) = ((float(np.squeeze(o[harmonics.block_cos(1)])), float(np.squeeze(o[harmonics.block_sin(1)])))
-                        for o in (_output(x, dof, harmonics), _output(dx, dof, harmonics)))
+                        for o in (output_signal(x, dof, harmonics), output_signal(dx, dof, harmonics)))
     a = np.hypot(c, s)
     return float((c * dc + s * ds) / a) if a > 0 else float(np.hypot(dc, ds))
 
