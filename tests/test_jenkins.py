@@ -215,3 +215,21 @@ def test_steady_slider_closes_below_the_search_tolerance(has_normal):
             scale = max(p.mu[k] * p.N0[k] / p.kt[k], np.abs(g[:, :, :2]).max())
             worst = max(worst, np.abs(w_end - r.w_start[k:k + 1]).max() / scale)
     assert 0.0 < worst <= 1e-13
+
+
+def test_kernels_run_on_openmp_not_tbb():
+    """The prange loops run on numba's OpenMP layer unless the user chose one: a whole suite once
+    hung at exit in numba's TBB finalize (jointfem/contact/_threading.py).  A fresh interpreter,
+    because the layer is fixed by the first parallel call of a process."""
+    import os
+    import subprocess
+    import sys
+
+    env = {k: v for k, v in os.environ.items() if not k.startswith("NUMBA_THREADING_LAYER")}
+    code = ("import numpy as np; from jointfem.contact.jenkins import JenkinsPairs, compute_aft; "
+            "from jointfem.harmonics import Harmonics; import numba; h = Harmonics(1, 16); "
+            "G = np.zeros((h.num_hc, 1, 1)); G[h.block_cos(1), 0, 0] = 3.0; "
+            "compute_aft(JenkinsPairs(kt=[1.0], kn=[0.0], mu=[1.0], N0=[1.0]), G, h); "
+            "print(numba.threading_layer())")
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "omp"

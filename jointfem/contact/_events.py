@@ -34,6 +34,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
+from . import _threading  # noqa: F401 (sets the threading layer before the first prange runs)
+
 from .law import SEPARATED, SLIP, STICK
 
 MAX_EVENTS = 16  # switches within one sample interval before the march gives up (status 2)

@@ -19,6 +19,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
+from . import _threading  # noqa: F401 (sets the threading layer before the first prange runs)
+
 from .law import SEPARATED, SLIP, STICK  # noqa: F401 (compile-time constants of the kernels)
 
 
