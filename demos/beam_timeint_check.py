@@ -224,7 +224,7 @@ def main(argv=None) -> int:
         picks["separated, highest frequency"] = int(on[np.argmax(f_hz[on])])
         picks["separated, first point"] = int(on[0])
         picks["separated, last point"] = int(on[-1])
-    # Hill's stability on the full-order problem (the sweep leaves it out above 160 unknowns): the
+    # Hill's stability on the full-order problem, as the sweep computes it by default: the
     # same harmonics and AFT samples as the sweep, so that the point is a root of its residual
     h = Harmonics(scene.solver.harmonics, scene.solver.samples)
     problem = create_problem(structure, h)

@@ -111,8 +111,8 @@ def run(out: Path, *, coarse: bool = False, progress: bool = True, scene: Path =
             "max_rel_diff_to_stuck_linear": float(np.max(np.abs(frf.amplitude(dof) - lin) / lin)),
             "wall_s": frf.info["time_online_s"],
             # what is known of the orbits drawn: the largest harmonic truncation estimate on the branch
-            # (docs/theory.md), and the number of points found unstable (None: not computed, as at
-            # full order beyond stability_auto_unknowns; --stability on computes it)
+            # (docs/theory.md), and the number of points found unstable (None: not computed, as
+            # with --stability off)
             "harmonic_error_max": float(np.max(frf.info["arrays"]["harmonic_error"])),
             "unstable_points": None if frf.stable is None else int((~np.asarray(frf.stable)).sum()),
         }

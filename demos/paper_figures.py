@@ -258,8 +258,8 @@ def main(argv=None) -> int:
     scene = dataclasses.replace(scene, solver=dataclasses.replace(scene.solver, harmonics=3,
                                                                   samples=1024))
     structure = create_structure(scene)
-    # no stability (Hill's method): paper.md does not use it, and "auto" computes it only for the
-    # problems up to 160 coefficients (penalty:10, not cb:10), which would bias the online times
+    # no stability (Hill's method): paper.md does not use it, and its online times compare the
+    # sweeps alone
     sweep = sweep_options(scene, stability="off")
     t0 = time.perf_counter()
     print("fig5", file=sys.stderr)

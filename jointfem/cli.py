@@ -234,8 +234,9 @@ def _set_arg(p) -> None:
 
 def _stability_arg(p) -> None:
     p.add_argument("--stability", choices=("auto", "on", "off"), default="auto",
-                   help="Floquet exponents of every point (Hill's method): auto (default) where the problem has at "
-                        "most 160 unknowns, on always (a dense eigensolve per point), off")
+                   help="Floquet exponents of every point (Hill's method): auto (default) and on compute them wherever "
+                        "the method has Hill matrices, at any size (dense up to 1600 first-order unknowns, else the "
+                        "exponents near zero by shift-invert Arnoldi); off skips them")
 
 
 def build_parser() -> argparse.ArgumentParser:

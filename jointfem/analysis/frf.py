@@ -18,7 +18,7 @@ from ..results import FrequencyResponse
 from ..rom.common import Reduction
 from .convergence import PEAK_SPAN, TruncationEstimator, top_harmonic_share
 from .peaks import locate_peaks
-from .stability import is_stable, leading_exponent
+from .stability import ExponentTracker, is_stable
 
 log = logging.getLogger(__name__)
 
@@ -30,11 +30,12 @@ class SweepOptions:
     harmonics: Harmonics = Harmonics(5, 256)
     continuation: ContinuationOptions = field(default_factory=ContinuationOptions)
     locate_peaks: bool = True  # every output's peak solved to the Newton tolerance (analysis.peaks)
-    # Floquet exponents of every point by Hill's method (analysis.stability), an eigensolve of twice
-    # the unknowns of Hill's problem per point (dense, or near zero by Arnoldi above 1600): True
-    # always, False never, None ("auto") up to stability_auto_unknowns unknowns (Problem.hill_size)
+    # Floquet exponents of every point by Hill's method (analysis.stability): dense up to 1600
+    # first-order unknowns, else those near zero by shift-invert Arnoldi.  True always, False never,
+    # None ("auto") wherever the problem has Hill matrices, up to stability_auto_unknowns
+    # (Problem.hill_size) when that is set
     stability: bool | None = None
-    stability_auto_unknowns: int = 160
+    stability_auto_unknowns: int | None = None
     # warn when a point's harmonic truncation estimate (analysis.convergence) passes this: the
     # first harmonic then changes by about e^2 / 4 when H grows by 2 (SDOF Jenkins, measured)
     harmonic_tol: float = 0.05
@@ -132,7 +133,8 @@ def compute_frf(model: Structure | Reduction, options: SweepOptions, *,
     # the tangent (the problem returns it again from its last evaluation)
     # (decided once, on the largest system the problem can have: the penalty ROM's grows)
     stability = (options.stability if options.stability is not None
-                 else problem.hill_size <= options.stability_auto_unknowns)
+                 else options.stability_auto_unknowns is None or problem.hill_size <= options.stability_auto_unknowns)
+    exponent = ExponentTracker(problem)
 
     def record(U, omega):
         # (called as the continuation accepts a point: the unknowns now are those it was solved in)
@@ -140,7 +142,7 @@ def compute_frf(model: Structure | Reduction, options: SweepOptions, *,
         rec = replace(problem.record(U, omega, ev), harmonic_error=top_harmonic_share(ev.contact, h),
                       unknowns=problem.num_unknowns)
         if stability:
-            rec = replace(rec, stability=leading_exponent(problem, U, omega, ev))
+            rec = replace(rec, stability=exponent(U, omega, ev))
         return rec
 
     # a frequency response lives at positive omega: a branch that leaves the octave around the
