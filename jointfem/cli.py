@@ -28,6 +28,27 @@ def _rom_options(args, *, offline: str = "replicated") -> RomOptions:
     return RomOptions(modes=args.modes, tvd=args.tvd, tvd_kind=args.tvd_kind, offline=offline)
 
 
+def _count(least: int):
+    """An argparse type: an integer of at least ``least`` (argparse names the option and exits 2)."""
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+        if value < least:
+            raise argparse.ArgumentTypeError(f"{value} < {least}")
+        return value
+    return parse
+
+
+def _rom_args(parser) -> None:
+    parser.add_argument("--modes", type=int, default=defaults.ROM_MODES,
+                        help=f"vibration modes of the ROM (default {defaults.ROM_MODES})")
+    parser.add_argument("--tvd", type=int, default=defaults.ROM_TVD,
+                        help=f"trial-vector derivatives (penalty, tvd; default {defaults.ROM_TVD})")
+    _tvd_kind_arg(parser)
+
+
 def _tvd_kind_arg(parser) -> None:
     from .rom.cms import TVD_KINDS
     parser.add_argument("--tvd-kind", choices=TVD_KINDS, default="eigen",
@@ -240,7 +261,10 @@ def _stability_arg(p) -> None:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from . import __version__
+
     p = argparse.ArgumentParser(prog="jointfem", description="Nonlinear vibration of jointed structures (HBM).")
+    p.add_argument("--version", action="version", version=f"jointfem {__version__}")
     sub = p.add_subparsers(dest="command", required=True)
     f = sub.add_parser("frf", help="nonlinear frequency response of a scene")
     f.add_argument("scene", help="scene file (TOML)")
@@ -248,11 +272,7 @@ def build_parser() -> argparse.ArgumentParser:
     f.add_argument("--harmonics", type=int, help="number of harmonics H (overrides the scene)")
     f.add_argument("--samples", type=int, help="AFT time samples N >= 2H+1 (overrides the scene)")
     f.add_argument("--method", choices=METHODS, default="full", help="model reduction (default: full order)")
-    f.add_argument("--modes", type=int, default=defaults.ROM_MODES,
-                   help=f"vibration modes of the ROM (default {defaults.ROM_MODES})")
-    f.add_argument("--tvd", type=int, default=defaults.ROM_TVD,
-                   help=f"trial-vector derivatives (penalty, tvd; default {defaults.ROM_TVD})")
-    _tvd_kind_arg(f)
+    _rom_args(f)
     f.add_argument("--offline", choices=("replicated", "distributed"), default="replicated",
                    help="penalty on a continuum scene: replicated (default: every MPI rank holds K, M and the basis) "
                         "or distributed (they stay in row blocks on the ranks; the deformed shape is not written)")
@@ -266,7 +286,7 @@ def build_parser() -> argparse.ArgumentParser:
     f.set_defaults(func=cmd_frf)
     mo = sub.add_parser("modes", help="the linear modes with the joint stuck and free (CSV, NPZ): where to sweep")
     mo.add_argument("scene", help="scene file (TOML)")
-    mo.add_argument("--num", type=int, default=10, help="number of modes (default 10)")
+    mo.add_argument("--num", type=_count(1), default=10, help="number of modes (default 10)")
     mo.add_argument("--out", help="output folder (default results/<scene name>_modes)")
     mo.add_argument("--quiet", action="store_true")
     _set_arg(mo)
@@ -282,9 +302,7 @@ def build_parser() -> argparse.ArgumentParser:
     fo.add_argument("--harmonics", type=int, help="number of harmonics H (overrides the scene)")
     fo.add_argument("--samples", type=int, help="AFT time samples N >= 2H+1 (overrides the scene)")
     fo.add_argument("--method", choices=METHODS, default="full", help="model reduction (default: full order)")
-    fo.add_argument("--modes", type=int, default=defaults.ROM_MODES)
-    fo.add_argument("--tvd", type=int, default=defaults.ROM_TVD)
-    _tvd_kind_arg(fo)
+    _rom_args(fo)
     fo.add_argument("--quiet", action="store_true")
     _set_arg(fo)
     fo.set_defaults(func=cmd_force)
@@ -298,9 +316,7 @@ def build_parser() -> argparse.ArgumentParser:
     nm.add_argument("--method", choices=METHODS, default="full",
                     help="model reduction (default: full order; exact: the condensation on the gaps, the same "
                          "backbone as full order)")
-    nm.add_argument("--modes", type=int, default=defaults.ROM_MODES)
-    nm.add_argument("--tvd", type=int, default=defaults.ROM_TVD)
-    _tvd_kind_arg(nm)
+    _rom_args(nm)
     nm.add_argument("--quiet", action="store_true")
     nm.add_argument("--plots", action="store_true",
                     help="also the contact-state pictures (as `jointfem plot`; 'peak' is the largest amplitude)")

@@ -400,6 +400,26 @@ def _normal_preload(t: _Table, has_normal: bool, kn: float) -> float:
     return -kn * gap if gap > 0 else N0
 
 
+SEMIDEFINITE_DENSE = 3000  # K up to this size is checked whole (a dense eigvalsh: about 1 s)
+
+
+def _check_semidefinite(t: _Table, key: str, K) -> None:
+    """A stiffness matrix is positive semi-definite (singular where the model floats free).  A
+    negative diagonal entry disproves it at any size (x = e_i gives x^T K x < 0), which catches a
+    negative-definite K; up to SEMIDEFINITE_DENSE DOFs its smallest eigenvalue is checked too, to
+    -1e-9 of its largest (a singular K's zero eigenvalues carry round-off of about n eps |K|)."""
+    d = K.diagonal()
+    if np.any(d < 0):
+        i = int(np.argmin(d))
+        t.fail(key, t.data[key], f"has a negative diagonal entry ({d[i]:.6g} at row {i}): not a stiffness matrix "
+                                 f"(x^T K x < 0 for x = e_{i})")
+    if K.shape[0] <= SEMIDEFINITE_DENSE:
+        lam = np.linalg.eigvalsh(K.toarray())
+        if lam[0] < -1e-9 * max(abs(lam[-1]), 1e-300):
+            t.fail(key, t.data[key], f"is not positive semi-definite: its smallest eigenvalue is {lam[0]:.6g} "
+                                     f"(largest {lam[-1]:.6g})")
+
+
 def _matrices(top: _Table, path):
     """kind = "matrices": K, M (and D) from files, Jenkins pairs between DOFs (models.matrices)."""
     import scipy.sparse as sp
@@ -428,6 +448,7 @@ def _matrices(top: _Table, path):
             t.fail(key, t.data[key], "is not symmetric (to 1e-10 of its largest entry)")
     if np.any(mats["M"].diagonal() <= 0):
         t.fail("M", t.data["M"], "has a diagonal entry <= 0: not a mass matrix")
+    _check_semidefinite(t, "K", mats["K"])
     names = tuple(str(x) for x in t.raw("dof_names", [str(i) for i in range(n)]))
     if len(names) != n or len(set(names)) != n or GROUND in names:
         t.fail("dof_names", list(names), f"must be {n} different names (not 'ground')")

@@ -389,3 +389,29 @@ def test_an_nma_run_into_a_sweeps_folder_clears_each_old_file_once(tmp_path):
     gone = remove_stale(tmp_path, NMA_OWNED + OWNED)
     assert sorted(p.name for p in gone) == ["branch.npz", "frf.csv", "interface_3.png", "summary.json"]
     assert [p.name for p in tmp_path.iterdir()] == ["mine.txt"]
+
+
+def test_counts_the_methods_cannot_use_are_refused_with_the_option_named(tmp_path, capsys):
+    """Issue 50, items 11-12: ``--modes 0`` with the penalty (or tvd) ROM stopped in a ValueError
+    traceback after the offline stage, ``modes --num 0`` wrote an empty table with exit 0, there was
+    no ``--version``, and force and nma had no help for --modes and --tvd."""
+    from jointfem import __version__, cli
+
+    scene = ROOT / "demos" / "sdof_jenkins.toml"
+    for method in ("penalty", "tvd"):
+        out = tmp_path / method
+        assert cli.main(["frf", str(scene), "--out", str(out), "--method", method, "--modes", "0", "--quiet"]) == 2
+        err = capsys.readouterr().err
+        assert f"{method}: modes = 0" in err and "--modes >= 1" in err and not out.exists()
+    for num in ("0", "-3", "x"):
+        with pytest.raises(SystemExit) as exc:
+            cli.main(["modes", str(scene), "--num", num, "--out", str(tmp_path / "m")])
+        assert exc.value.code == 2 and "--num" in capsys.readouterr().err and not (tmp_path / "m").exists()
+    with pytest.raises(SystemExit) as exc:
+        cli.main(["--version"])
+    assert exc.value.code == 0 and capsys.readouterr().out.strip() == f"jointfem {__version__}"
+    for command in ("force", "nma", "frf"):
+        with pytest.raises(SystemExit):
+            cli.main([command, "--help"])
+        text = " ".join(capsys.readouterr().out.split())
+        assert "vibration modes of the ROM" in text and "trial-vector derivatives" in text, command

@@ -86,10 +86,15 @@ def test_bad_matrix_files_are_one_line(tmp_path):
     sio.mmwrite(str(tmp_path / "k.mtx"), sp.csr_matrix(np.array([[2.0, -1.0], [-1.0, 2.0]])))
     sio.mmwrite(str(tmp_path / "rect.mtx"), sp.csr_matrix(np.ones((2, 3))))
     sio.mmwrite(str(tmp_path / "asym.mtx"), sp.csr_matrix(np.array([[1.0, 0.5], [0.0, 1.0]])))
+    # issue 50, item 5: a negative-definite K, and an indefinite one with a positive diagonal
+    sio.mmwrite(str(tmp_path / "negk.mtx"), sp.csr_matrix(np.array([[-2.0, 1.0], [1.0, -2.0]])))
+    sio.mmwrite(str(tmp_path / "indef.mtx"), sp.csr_matrix(np.array([[1.0, 2.0], [2.0, 1.0]])))
     base = MATRICES_SCENE.format(K="k.mtx", M="k.mtx", D="k.mtx", variables="")
     for old, new, words in (('K = "k.mtx"', 'K = "nope.mtx"', r"matrices.K = 'nope.mtx'.*cannot be read"),
                             ('M = "k.mtx"', 'M = "rect.mtx"', r"matrices.M = 'rect.mtx'.*not square"),
                             ('K = "k.mtx"', 'K = "asym.mtx"', r"matrices.K = 'asym.mtx'.*not symmetric"),
+                            ('K = "k.mtx"', 'K = "negk.mtx"', r"matrices.K = 'negk.mtx'.*negative diagonal entry"),
+                            ('K = "k.mtx"', 'K = "indef.mtx"', r"matrices.K = 'indef.mtx'.*smallest eigenvalue is -1"),
                             ('normal = ["m.z", "ground"]', 'normal = ["m.y", "ground"]', r"jenkins\[0\].normal")):
         p = tmp_path / "bad.toml"
         p.write_text(base.replace(old, new))

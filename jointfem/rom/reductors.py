@@ -14,6 +14,7 @@ REDUCTORS = {
     "cc": cms.characteristic_constraint_modes, "tvd": cms.tvd_method, "penalty": penalty.PenaltyROM,
 }
 METHODS = ("full", *REDUCTORS)  # "full": no reduction
+MODAL = ("penalty", "tvd")  # the reductors whose basis starts from the stuck structure's modes
 
 
 def build_rom(structure: Structure, method: str, options: RomOptions = RomOptions()) -> Reduction:
@@ -22,6 +23,10 @@ def build_rom(structure: Structure, method: str, options: RomOptions = RomOption
         raise RomError(f"unknown reduction method {method!r}; choose one of {', '.join(METHODS[1:])}")
     if method != "exact" and (options.modes < 0 or options.tvd < 0):
         raise RomError(f"{method}: modes = {options.modes} and tvd = {options.tvd} must be >= 0")
+    if method in MODAL and options.modes < 1:
+        # (their basis is built on the stuck modes: without one, there is nothing to add the static
+        # modes and derivatives to, and the problem would have no unknowns)
+        raise RomError(f"{method}: modes = {options.modes}: this method needs at least one vibration mode (--modes >= 1)")
     t0 = time.perf_counter()
     rom = REDUCTORS[method](structure, options)
     rom.offline_s = time.perf_counter() - t0
