@@ -256,7 +256,7 @@ def _set_arg(p) -> None:
 def _stability_arg(p) -> None:
     p.add_argument("--stability", choices=("auto", "on", "off"), default="auto",
                    help="Floquet exponents of every point (Hill's method): auto (default) and on compute them wherever "
-                        "the method has Hill matrices, at any size (dense up to 1600 first-order unknowns, else the "
+                        "the method has Hill matrices, at any size (dense up to 200 first-order unknowns, else the "
                         "exponents near zero by shift-invert Arnoldi); off skips them")
 
 

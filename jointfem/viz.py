@@ -8,6 +8,7 @@ peak normal force, and the pairs' reference positions.  Nothing is recomputed.
 """
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -42,6 +43,15 @@ def load(folder) -> dict:
     path = folder / "branch.npz"
     if not path.is_file():
         raise OutputError(f"{folder}: no branch.npz here (is it a folder written by `jointfem frf`?)")
+    summary = folder / "summary.json"
+    if summary.is_file():
+        try:
+            analysis = json.loads(summary.read_text()).get("analysis")
+        except (OSError, ValueError, AttributeError):
+            analysis = None
+        if analysis == "force":  # its branch is in the force factor and holds no output layout
+            raise OutputError(f"{folder}: a `jointfem force` folder (summary.json analysis = 'force'): its picture "
+                              f"is force.png; plot and export take the folders of `jointfem frf` and `jointfem nma`")
     return load_branch(path)
 
 

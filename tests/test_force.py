@@ -52,6 +52,12 @@ def test_force_command_writes_its_files(tmp_path):
     s = json.loads((out / "summary.json").read_text())
     assert s["omega_rad_s"] == 1.2 and s["status"] == "complete" and s["num_points"] == data.shape[0]
     assert (out / "force.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    # plot and export say what the folder is, in one line (issue 50, item 9: a KeyError traceback)
+    for command in ("plot", "export"):
+        r = subprocess.run([sys.executable, "-m", "jointfem", command, str(out)], capture_output=True, text=True)
+        assert r.returncode == 2 and "a `jointfem force` folder" in r.stderr and "Traceback" not in r.stderr, r.stderr
+        assert len(r.stderr.strip().splitlines()) == 1
+    assert not (out / "export").exists()
 
 
 def test_a_force_sweep_that_stops_keeps_its_points_and_resumes(tmp_path):
