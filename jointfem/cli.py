@@ -88,9 +88,27 @@ def cmd_frf(args) -> int:
                       f"{pk['omega_rad_s']:.6f} rad/s ({pk['freq_Hz']:.4f} Hz)")
                 continue
             print(f"{name}: peak {pk['amp1_m']:.6e} m at {pk['omega_rad_s']:.6f} rad/s ({pk['freq_Hz']:.4f} Hz)")
+        print(_what_is_known(summary))
         print(f"{summary['num_points']} points, {summary['newton_iterations_total']} Newton iterations, "
               f"{summary['wall_s']['total']:.2f} s -> {out}/")
     return 0
+
+
+def _what_is_known(summary: dict) -> str:
+    """The harmonics solved, the truncation estimate and the stability of a sweep, in one line for
+    the terminal (issue 50, item 7: they were only in summary.json)."""
+    parts = [f"H = {summary['harmonics']}, N = {summary['samples']}"]
+    he = summary.get("harmonic_error")
+    if he is not None:
+        parts.append(f"truncation estimate up to {he['max']:.3g}" + (" (not converged in H: see the warning)"
+                                                                      if "warning" in he else ""))
+    stab = summary.get("stability")
+    if stab is not None:
+        if "unstable_points" in stab:
+            parts.append(f"stability computed: {stab['unstable_points']} of {summary['num_points']} points unstable")
+        else:
+            parts.append(f"stability {stab['status']}")
+    return "; ".join(parts)
 
 
 def cmd_modes(args) -> int:

@@ -52,18 +52,29 @@ def plot_branch(ax, x, y, stable, *, label: str, **kw):
     return line
 
 
-def plot_frf(frf: FrequencyResponse, path: Path, *, title: str = "") -> Path:
+def plot_frf(frf: FrequencyResponse, path: Path, *, title: str = "", harmonic_tol: float = 0.05) -> Path:
     """FRF of every output (first-harmonic amplitude and half peak-to-peak, m, against Hz), and
-    below it the share of contact pairs sticking, slipping and separated along the branch."""
+    below it the share of contact pairs sticking, slipping and separated along the branch.  As
+    ``plot_levels``: dashed where unstable, the label saying where stability was not computed, and
+    dotted over the points whose truncation estimate exceeds ``harmonic_tol``."""
     plt = pyplot()
     has_contact = frf.states.shape[-1] > 0
     fig, axes = plt.subplots(2 if has_contact else 1, 1, figsize=(7.5, 6.5 if has_contact else 4.2), sharex=True,
                              squeeze=False, gridspec_kw={"height_ratios": [3, 1.2]} if has_contact else None)
     ax = axes[0, 0]
     f_hz = frf.omega / (2 * np.pi)
+    he = frf.info.get("arrays", {}).get("harmonic_error")
+    bad = None if he is None or np.max(he) <= harmonic_tol else np.asarray(he) > harmonic_tol
     for name, dof in frf.outputs.items():
-        line = plot_branch(ax, f_hz, frf.amplitude(dof), frf.stable, label=f"{name}: 1st harmonic")
+        label = f"{name}: 1st harmonic" + ("" if frf.stable is not None else " (stability not computed)")
+        a = frf.amplitude(dof)
+        line = plot_branch(ax, f_hz, a, frf.stable, label=label)
         ax.plot(f_hz, frf.half_peak_to_peak(dof), ":", color=line.get_color(), lw=1, label=f"{name}: half peak-to-peak")
+        if bad is not None:
+            on = bad | np.append(bad[1:], False) | np.append(False, bad[:-1])
+            ax.plot(f_hz, np.where(on, a, np.nan), ls=":", lw=3, color=line.get_color(), alpha=0.6,
+                    label=f"{name}: H = {frf.harmonics.H} not converged (truncation estimate "
+                          f"up to {np.max(he):.2f} > {harmonic_tol:g})")
     ax.set_ylabel("amplitude [m]")
     ax.set_yscale("log")
     ax.grid(True, which="both", alpha=0.3)

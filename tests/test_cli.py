@@ -36,6 +36,11 @@ def test_frf_writes_csv_npz_json_png(tmp_path):
     for key in ("scene", "method", "model", "rom", "num_points", "newton_iterations_total", "wall_s", "peaks"):
         assert key in s
     assert s["harmonics"] == 5 and s["samples"] == 128 and s["num_points"] == data.shape[0]
+    # the terminal says what is known of the answer (issue 50, item 7): H, N, the truncation estimate
+    # and the stability, as summary.json has them
+    known = [ln for ln in r.stdout.splitlines() if ln.startswith("H = ")]
+    assert known == [f"H = 5, N = 128; truncation estimate up to {s['harmonic_error']['max']:.3g}; stability computed: "
+                     f"{s['stability']['unstable_points']} of {s['num_points']} points unstable"], r.stdout
     pk = s["peaks"]["m.x"]
     assert 1.3 < pk["omega_rad_s"] < 1.45 and pk["freq_Hz"] == pk["omega_rad_s"] / (2 * np.pi)
     png = (out / "frf.png").read_bytes()
@@ -415,3 +420,31 @@ def test_counts_the_methods_cannot_use_are_refused_with_the_option_named(tmp_pat
             cli.main([command, "--help"])
         text = " ".join(capsys.readouterr().out.split())
         assert "vibration modes of the ROM" in text and "trial-vector derivatives" in text, command
+
+
+def test_frf_picture_says_where_h_is_not_converged_and_where_stability_is_unknown(tmp_path, monkeypatch):
+    """frf.png (plots.plot_frf) marks the points whose truncation estimate exceeds the tolerance
+    and says when stability was not computed, as levels.png does (issue 50, item 6)."""
+    import dataclasses
+
+    import matplotlib.figure
+
+    from jointfem.analysis.frf import SweepOptions, compute_frf
+    from jointfem.harmonics import Harmonics
+    from jointfem.models.lumped import create_lumped
+    from jointfem.plots import plot_frf
+    from conftest import sdof
+
+    frf = compute_frf(create_lumped(sdof(0.5)), SweepOptions(0.5, 2.0, Harmonics(3, 64), stability=False))
+    labels = []
+    monkeypatch.setattr(matplotlib.figure.Figure, "savefig", lambda fig, *a, **k: labels.extend(
+        t.get_text() for ax in fig.axes if ax.get_legend() for t in ax.get_legend().get_texts()))
+    he = frf.info["arrays"]["harmonic_error"]
+    plot_frf(frf, tmp_path / "a.png", harmonic_tol=0.5 * he.max())
+    assert "m.x: 1st harmonic (stability not computed)" in labels
+    assert any(t.startswith("m.x: H = 3 not converged (truncation estimate up to") for t in labels), labels
+    labels.clear()
+    stable = dataclasses.replace(frf, info={**frf.info, "arrays": {**frf.info["arrays"],
+                                                                  "stable": np.ones(frf.omega.size, bool)}})
+    plot_frf(stable, tmp_path / "b.png", harmonic_tol=2.0 * he.max())
+    assert "m.x: 1st harmonic" in labels and not any("not converged" in t or "not computed" in t for t in labels)
