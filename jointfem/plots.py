@@ -32,6 +32,20 @@ def finish(fig, ax, path: Path, *, title: str = "", legend_size: int = 8) -> Pat
     return Path(path)
 
 
+def readable_axes(ax, *, log_y: bool = True) -> None:
+    """The frequency also in rad/s, the unit of the scene's inputs, on a second axis at the top (the
+    x axis is in Hz), and labels on the minor ticks of a log axis that spans few decades (matplotlib
+    labels only the decades by default: the beam's FRF showed just 1e-4)."""
+    from matplotlib.ticker import LogFormatterSciNotation
+
+    top = ax.secondary_xaxis("top", functions=(lambda f: 2 * np.pi * f, lambda w: w / (2 * np.pi)))
+    top.set_xlabel("omega [rad/s]", fontsize=8)
+    top.tick_params(labelsize=7)
+    if log_y:
+        ax.yaxis.set_minor_formatter(LogFormatterSciNotation(labelOnlyBase=False, minor_thresholds=(2, 0.5)))
+        ax.tick_params(axis="y", which="minor", labelsize=7)
+
+
 def plot_branch(ax, x, y, stable, *, label: str, **kw):
     """A branch as a line, solid where it is stable and dashed where it is not (both where the
     stability is unknown: solid).  A segment is stable when both its end points are."""
@@ -74,13 +88,14 @@ def plot_frf(frf: FrequencyResponse, path: Path, *, title: str = "", harmonic_to
             on = bad | np.append(bad[1:], False) | np.append(False, bad[:-1])
             ax.plot(f_hz, np.where(on, a, np.nan), ls=":", lw=3, color=line.get_color(), alpha=0.6,
                     label=f"{name}: H = {frf.harmonics.H} not converged (truncation estimate "
-                          f"up to {np.max(he):.2f} > {harmonic_tol:g})")
+                          f"up to {np.max(he):.3g} > {harmonic_tol:g})")
     ax.set_ylabel("amplitude [m]")
     ax.set_yscale("log")
+    readable_axes(ax)
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=8)
     if title:
-        ax.set_title(title)
+        ax.set_title(title, fontsize=10)
     if has_contact:
         fr = frf.state_fractions().mean(axis=1)  # (points, 3)
         ax2 = axes[1, 0]
@@ -128,6 +143,7 @@ def plot_levels(curves: list[tuple[str, FrequencyResponse]], output: str, path: 
     ax.set_xlabel("frequency [Hz]")
     ax.set_ylabel(f"{output} receptance [m/N]")
     ax.set_yscale("log")
+    readable_axes(ax)
     return finish(fig, ax, path, title=title)
 
 
@@ -144,6 +160,7 @@ def plot_compare(results, output: str, frf_path: Path, pareto_path: Path, *, tit
                     **({"color": "k"} if i == 0 else {}))
     ax.set_xlabel("frequency [Hz]")
     ax.set_ylabel(f"{output}: 1st harmonic amplitude [m]")
+    readable_axes(ax, log_y=False)
     finish(fig, ax, frf_path, title=title, legend_size=7)
 
     fig, ax = plt.subplots(figsize=(6.5, 4.5))

@@ -424,7 +424,8 @@ def test_counts_the_methods_cannot_use_are_refused_with_the_option_named(tmp_pat
 
 def test_frf_picture_says_where_h_is_not_converged_and_where_stability_is_unknown(tmp_path, monkeypatch):
     """frf.png (plots.plot_frf) marks the points whose truncation estimate exceeds the tolerance
-    and says when stability was not computed, as levels.png does (issue 50, item 6)."""
+    and says when stability was not computed, as levels.png does (issue 50, item 6); it has omega
+    in rad/s on a second axis and labels between the decades of its log axis (item 8)."""
     import dataclasses
 
     import matplotlib.figure
@@ -436,12 +437,20 @@ def test_frf_picture_says_where_h_is_not_converged_and_where_stability_is_unknow
     from conftest import sdof
 
     frf = compute_frf(create_lumped(sdof(0.5)), SweepOptions(0.5, 2.0, Harmonics(3, 64), stability=False))
-    labels = []
-    monkeypatch.setattr(matplotlib.figure.Figure, "savefig", lambda fig, *a, **k: labels.extend(
-        t.get_text() for ax in fig.axes if ax.get_legend() for t in ax.get_legend().get_texts()))
+    labels, top, minor = [], [], []
+
+    def look(fig, *a, **k):
+        fig.canvas.draw()
+        labels.extend(t.get_text() for ax in fig.axes if ax.get_legend() for t in ax.get_legend().get_texts())
+        top.extend(c.get_xlabel() for c in fig.axes[0].child_axes)
+        minor.extend(t.get_text() for t in fig.axes[0].get_yticklabels(minor=True) if t.get_text())
+
+    monkeypatch.setattr(matplotlib.figure.Figure, "savefig", look)
     he = frf.info["arrays"]["harmonic_error"]
     plot_frf(frf, tmp_path / "a.png", harmonic_tol=0.5 * he.max())
     assert "m.x: 1st harmonic (stability not computed)" in labels
+    # item 8: the scene's unit on a second axis, and the amplitude readable between decades
+    assert top == ["omega [rad/s]"] and len(minor) >= 2, (top, minor)
     assert any(t.startswith("m.x: H = 3 not converged (truncation estimate up to") for t in labels), labels
     labels.clear()
     stable = dataclasses.replace(frf, info={**frf.info, "arrays": {**frf.info["arrays"],
