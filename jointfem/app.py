@@ -455,8 +455,9 @@ def software() -> dict:
 
 
 def linear_modes(structure: Structure, num: int = 10) -> dict:
-    """The lowest ``num`` linear modes of the structure with every contact pair stuck (K_lin: the
-    joint as linear springs, where a sweep starts) and free (K: every pair slipping or open, no
+    """The lowest ``num`` linear modes of the structure at rest with every friction pair stuck
+    (K_rest: the joint as linear springs, open pairs and unilateral springs short of their gap
+    open, as small vibrations about rest see it) and free (K: every pair slipping or open, no
     contact stiffness).  Per mode: omega (rad/s), the frequency (Hz), the modal damping ratio
     phi^T D phi / (2 omega) of mass-normalised phi, and the share of the force phi^T f.  Rigid-body
     modes of a free joint (K singular) come out at 0 rad/s."""
@@ -465,7 +466,7 @@ def linear_modes(structure: Structure, num: int = 10) -> dict:
     num = min(num, structure.num_dofs)
     f = structure.fc - 1j * structure.fs
     out = {}
-    for label, K in (("stuck", structure.K_lin), ("free", structure.K)):
+    for label, K in (("stuck", structure.K_rest), ("free", structure.K)):
         # a free joint may leave rigid-body modes: shift below zero (rad^2/s^2 of the lowest stuck mode)
         w2, Phi = eigen(K, structure.M, num, what=f"{label} modes", sigma=-1.0)
         w = np.sqrt(np.clip(w2, 0.0, None))

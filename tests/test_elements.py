@@ -188,3 +188,22 @@ def test_static_normal_load_splits_between_contact_and_parallel_spring():
     np.testing.assert_allclose(Ub[:, n:], a.U[:, n:], rtol=0, atol=1e-9 * np.abs(a.U).max())
     np.testing.assert_allclose(Ub[:, 1] - a.U[:, 1], 1.0, rtol=1e-9)  # z's mean: P / (kn + kz)
     np.testing.assert_allclose(Ub[:, 0], a.U[:, 0], atol=1e-9)  # x's mean unchanged
+
+
+@pytest.mark.parametrize("gap, omega", [(0.5, 1.0), (0.0, np.sqrt(5.0))])
+def test_modes_at_rest_leave_an_open_unilateral_spring_out(gap, omega):
+    """``jointfem modes`` (app.linear_modes): m = k = 1 with a unilateral spring k = 4 to ground.
+    Open at rest (gap 0.5, the docs/scenes.md example) small vibrations never reach it: 1 rad/s,
+    where it said sqrt(5) (issue 50, item 3).  Touching at rest (gap 0) it is engaged: sqrt(5).
+    The reductions still linearise it engaged (Structure.K_lin), which the penalty ROM's p needs."""
+    from jointfem.app import linear_modes
+    from jointfem.models.lumped import ForceSpec, GapSpringSpec, LinkSpec, LumpedSpec, MassSpec, create_lumped
+
+    s = create_lumped(LumpedSpec(masses=(MassSpec("m", 1.0),), springs=(LinkSpec("m.x", "ground", 1.0),),
+                                 dampers=(LinkSpec("m.x", "ground", 0.02),),
+                                 unilateral=(GapSpringSpec("m.x", "ground", 4.0, gap),),
+                                 forces=(ForceSpec("m.x", 0.05),), outputs=("m.x",)))
+    modes = linear_modes(s, 1)
+    assert modes["stuck"]["omega_rad_s"][0] == pytest.approx(omega, rel=1e-12)
+    assert modes["free"]["omega_rad_s"][0] == pytest.approx(1.0, rel=1e-12)
+    assert s.K_lin.toarray()[0, 0] == pytest.approx(5.0)

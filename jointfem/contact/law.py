@@ -81,6 +81,13 @@ class ContactLaw(ABC):
         """Linearised stiffness Kc per component, shape (P, m), N/m."""
 
     @property
+    def rest_stiffness(self) -> np.ndarray:
+        """The tangent stiffness of the law at rest (g = 0), shape (P, m), N/m: what the structure's
+        small vibrations about rest see (``jointfem modes``).  By default ``stiffness``; a law whose
+        linearisation ``stiffness`` is taken elsewhere than at rest says so here."""
+        return self.stiffness
+
+    @property
     @abstractmethod
     def preload(self) -> np.ndarray:
         """Static force f0 per component, shape (P, m), N."""

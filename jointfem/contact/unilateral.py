@@ -52,6 +52,12 @@ class UnilateralSprings(ContactLaw):
         return self.k[:, None].copy()
 
     @property
+    def rest_stiffness(self) -> np.ndarray:
+        """k where the gap is zero (touching at rest), 0 where it is open: at rest (g = 0) a spring
+        with gap > 0 carries nothing and small vibrations do not reach it."""
+        return np.where(self.gap > 0, 0.0, self.k)[:, None]
+
+    @property
     def preload(self) -> np.ndarray:
         return np.zeros((self.num_pairs, 1))
 

@@ -47,6 +47,12 @@ class ContactGroup:
         kc = sp.diags(self.pairs.stiffness.ravel())
         return sp.csr_matrix(self.load_operator.T @ kc @ self.gap)
 
+    @property
+    def rest_stiffness(self) -> sp.csr_matrix:
+        """L^T Kc G with the law's tangent at rest (ContactLaw.rest_stiffness), N/m."""
+        kc = sp.diags(self.pairs.rest_stiffness.ravel())
+        return sp.csr_matrix(self.load_operator.T @ kc @ self.gap)
+
 
 @dataclass(frozen=True)
 class Links:
@@ -134,6 +140,17 @@ class Structure:
         K = self.K.copy()
         for g in self.contacts:
             K = K + g.stuck_stiffness
+        return K.tocsr()
+
+    @property
+    def K_rest(self) -> sp.csr_matrix:
+        """The stiffness of small vibrations about rest: friction pairs stuck, open pairs and
+        unilateral springs short of their gap open (ContactLaw.rest_stiffness), N/m.  It differs
+        from K_lin only where a law linearises elsewhere than at rest (a unilateral spring with a
+        gap, which the reductions take engaged)."""
+        K = self.K.copy()
+        for g in self.contacts:
+            K = K + g.rest_stiffness
         return K.tocsr()
 
     def linear_response(self, omega: float | np.ndarray) -> np.ndarray:
