@@ -563,7 +563,12 @@ def synthesize_frf(backbone: Backbone, scale: float = 1.0) -> dict:
     solved for the excitation frequency Omega at each backbone point: two solutions (below and
     above resonance) where the amplitude is reachable.  Returns {"omega": (2, points) rad/s with
     NaN where unreachable, "amplitude": (points,) m at the backbone's output, "peak_amplitude",
-    "peak_omega"}: the peak where the two branches meet (interpolated in the backbone's points)."""
+    "peak_omega", "main_peak_amplitude", "main_peak_omega", "detached"}.  A peak is where the two
+    branches meet (disc = 0, interpolated in the backbone's points).  Where the modal damping falls
+    again at larger amplitude, the amplitude becomes reachable again beyond an unreachable stretch:
+    a part of the response detached from the one that grows from rest (an isola), which the picture
+    draws.  "peak_*" is then the largest amplitude of all (what the picture shows), "main_peak_*"
+    the first one, on the part connected to small amplitudes, and "detached" says so."""
     arr = backbone.info["arrays"]
     a, w, z = backbone.amplitude, backbone.omega, backbone.zeta
     m, f = arr["modal_mass_kg"], np.abs(arr["modal_force_N"]) * scale
@@ -580,16 +585,16 @@ def synthesize_frf(backbone: Backbone, scale: float = 1.0) -> dict:
     om[1, ok & (hi > 0)] = np.sqrt(hi[ok & (hi > 0)])
     # the peak: where disc = 0 (the two branches meet), between the last reachable point and the next
     g = disc / w ** 4
-    idx = np.flatnonzero(g[:-1] * g[1:] <= 0)
-    if idx.size:
-        i = int(idx[0])
+    peaks = []
+    for i in np.flatnonzero(g[:-1] * g[1:] <= 0):
         t = g[i] / (g[i] - g[i + 1]) if g[i] != g[i + 1] else 0.0
         la = np.log(a[i]) + t * (np.log(a[i + 1]) - np.log(a[i]))
-        pk_a = float(np.exp(la))
-        pk_w = float(np.sqrt(np.interp(t, [0, 1], [base[i], base[i + 1]])))
-    else:
-        pk_a, pk_w = float("nan"), float("nan")
-    return {"omega": om, "amplitude": a, "peak_amplitude": pk_a, "peak_omega": pk_w}
+        peaks.append((float(np.exp(la)), float(np.sqrt(np.interp(t, [0, 1], [base[i], base[i + 1]])))))
+    nan = (float("nan"), float("nan"))
+    main = peaks[0] if peaks else nan
+    top = max(peaks) if peaks else nan
+    return {"omega": om, "amplitude": a, "peak_amplitude": top[0], "peak_omega": top[1],
+            "main_peak_amplitude": main[0], "main_peak_omega": main[1], "detached": bool(peaks) and top != main}
 
 
 @dataclass
