@@ -457,3 +457,18 @@ def test_frf_picture_says_where_h_is_not_converged_and_where_stability_is_unknow
                                                                   "stable": np.ones(frf.omega.size, bool)}})
     plot_frf(stable, tmp_path / "b.png", harmonic_tol=2.0 * he.max())
     assert "m.x: 1st harmonic" in labels and not any("not converged" in t or "not computed" in t for t in labels)
+
+
+def test_compare_works_on_a_model_smaller_than_nine_dofs(tmp_path, capsys):
+    """Issue 50, item 10: compare asked every model for 9 linear frequencies and refused the 1-DOF
+    SDOF ("9 modes asked, but it has only 1 DOFs"); it now asks for as many as the model has, and
+    its table says what its columns are.  The penalty ROM with the one mode is the full model."""
+    from jointfem import cli
+
+    out = tmp_path / "c"
+    assert cli.main(["compare", str(ROOT / "demos" / "sdof_jenkins.toml"), "--methods", "penalty:1", "--out", str(out),
+                     "--harmonics", "3", "--samples", "64", "--quiet"]) == 0, capsys.readouterr().err
+    md = (out / "compare.md").read_text()
+    assert "| penalty:1 |" in md and "\"over stable points\"" in md and "| f1 |" in md and "f2" not in md
+    row = next(ln for ln in md.splitlines() if ln.startswith("| penalty:1 |")).split("|")
+    assert abs(float(row[7])) < 1e-6  # peak amplitude error, %: the same model

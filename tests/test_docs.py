@@ -56,6 +56,8 @@ for where, text in BLOCKS:
 
 def test_some_blocks_are_whole_scenes():
     assert {w for w, _ in WHOLE} >= {"docs/scenes.md#2", "docs/scenes.md#3"}
+    # the continuum example is a whole scene too (issue 50, item 15: it had no [solver] and was refused)
+    assert any(tomllib.loads(t)["kind"] == "continuum3d" and w.startswith("docs/scenes.md") for w, t in WHOLE)
 
 
 @pytest.mark.parametrize("where,text", [w for w in WHOLE if tomllib.loads(w[1])["kind"] in ("lumped", "beam2d")],

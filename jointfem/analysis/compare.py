@@ -158,6 +158,7 @@ def compare(structure: Structure, specs: list[MethodSpec], sweep, *, output: str
     ref_sweep = sweep if reference_ds_max is None else replace(
         sweep, continuation=replace(sweep.continuation, ds_max=reference_ds_max,
                                     ds0=min(sweep.continuation.ds0, reference_ds_max)))
+    num_freq = min(num_freq, structure.num_dofs)  # a small model has fewer (it refused a 1-DOF one)
     w2, _ = eigen(structure.K_lin, structure.M, num_freq, what="full linearised model")
     w_ref = np.sqrt(w2)
     specs = [MethodSpec(reference, RomOptions())] + [s for s in specs if s.method not in ("full", reference)]
@@ -223,10 +224,15 @@ def compare(structure: Structure, specs: list[MethodSpec], sweep, *, output: str
     return results
 
 
-def to_markdown(results: list[MethodResult], num_freq: int = 9) -> str:
+def to_markdown(results: list[MethodResult], num_freq: int | None = None) -> str:
     head = ("| method | size | RR | offline s | online s | s/point | peak amp err % | peak freq err % "
             "| curve err % | over stable points % |")
-    lines = [head, "|" + "---|" * 10]
+    if num_freq is None:
+        num_freq = max((r.freq_errors.size for r in results), default=0)
+    lines = ["RR: the ROM's largest size over the full model's DOFs. Curve error: the largest distance of the "
+             "ROM's points from the reference's curve, in % of the reference's peak; \"over stable points\": "
+             "the same over the points the ROM finds stable (Hill's method), nan where its stability was not "
+             "computed.", "", head, "|" + "---|" * 10]
     for r in results:
         size = r.size_text
         if r.failure:
