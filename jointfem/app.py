@@ -268,6 +268,9 @@ def _distributed_rom(scene: Scene, method: str, rom_options: RomOptions):
                                                                  f"{method} needs the replicated model")
     if not scene.kind.startswith("continuum"):
         raise SceneError(scene.path, "--offline", "distributed", f"is for continuum scenes (this one is {scene.kind})")
+    from .rom.reductors import check_options
+
+    check_options(method, rom_options)
     from .fem.distributed import create_distributed
     from .rom.penalty import PenaltyROM
 
@@ -852,6 +855,7 @@ def write_nma(solution: NmaSolution, scene: Scene, out: Path, *, method: str, ro
         # it lies on a part detached from the one growing from rest, that one's peak beside it
         summary["synthesized_peak"] = {"amplitude_m": synth["peak_amplitude"], "omega_rad_s": synth["peak_omega"],
                                        "freq_Hz": synth["peak_omega"] / (2 * np.pi), "detached": synth["detached"],
+                                       "beyond_backbone": synth["beyond_backbone"],
                                        **({"main_branch": {"amplitude_m": synth["main_peak_amplitude"],
                                                            "omega_rad_s": synth["main_peak_omega"]}}
                                           if synth["detached"] else {})}

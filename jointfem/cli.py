@@ -96,7 +96,7 @@ def cmd_frf(args) -> int:
 
 def _what_is_known(summary: dict) -> str:
     """The harmonics solved, the truncation estimate and the stability of a sweep, in one line for
-    the terminal (issue 50, item 7: they were only in summary.json)."""
+    the terminal: what is known of the answer, beside it and not only in summary.json."""
     parts = [f"H = {summary['harmonics']}, N = {summary['samples']}"]
     he = summary.get("harmonic_error")
     if he is not None:

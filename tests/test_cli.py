@@ -408,6 +408,11 @@ def test_counts_the_methods_cannot_use_are_refused_with_the_option_named(tmp_pat
         assert cli.main(["frf", str(scene), "--out", str(out), "--method", method, "--modes", "0", "--quiet"]) == 2
         err = capsys.readouterr().err
         assert f"{method}: modes = 0" in err and "--modes >= 1" in err and not out.exists()
+    # the distributed offline stage of a continuum refuses it too, before building anything
+    out = tmp_path / "dist"
+    assert cli.main(["frf", str(ROOT / "demos" / "lap2d.toml"), "--out", str(out), "--method", "penalty", "--modes", "0",
+                     "--offline", "distributed", "--quiet"]) == 2
+    assert "penalty: modes = 0" in capsys.readouterr().err and not out.exists()
     for num in ("0", "-3", "x"):
         with pytest.raises(SystemExit) as exc:
             cli.main(["modes", str(scene), "--num", num, "--out", str(tmp_path / "m")])

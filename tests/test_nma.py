@@ -363,3 +363,14 @@ def test_synthesis_reports_the_largest_peak_and_says_when_it_is_detached():
     assert 2.0 <= syn["main_peak_amplitude"] <= 2.03
     assert syn["peak_amplitude"] == pytest.approx(1.0 / (2 * 0.1 * np.sqrt(0.99)), abs=0.03)
     assert np.nanmax(np.where(np.isfinite(syn["omega"][0]), a, np.nan)) <= syn["peak_amplitude"]
+    assert not syn["beyond_backbone"]
+    # a backbone that ends inside the detached part (at a = 5.025): the foot of that part (about 5.0)
+    # is no peak; the response goes on beyond the backbone, whose end is then the largest amplitude
+    cut = a <= 5.03
+    part = Backbone(output="m.x", mode=1, amplitude=a[cut], omega=np.ones(cut.sum()), xi=2.0 * zeta[cut],
+                    U=np.zeros((cut.sum(), 3)), states=np.zeros((cut.sum(), 4, 0), np.int8), harmonics=Harmonics(1, 4),
+                    outputs={"m.x": 0}, info={"arrays": {"modal_mass_kg": np.ones(cut.sum()),
+                                                         "modal_force_N": np.ones(cut.sum())}})
+    syn = synthesize_frf(part)
+    assert syn["beyond_backbone"] and syn["detached"] and syn["peak_amplitude"] == a[cut][-1]
+    assert 2.0 <= syn["main_peak_amplitude"] <= 2.03

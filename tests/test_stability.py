@@ -318,3 +318,41 @@ def test_stability_is_computed_by_default_at_any_size_and_gives_the_dense_expone
         dense = max_real_part(pb, frf.U[i], w, pb.evaluate(frf.U[i], w, jacobian=True), dense=True)
         assert abs(dense - re[i]) < 1e-7 * w, (w, dense, re[i])
         assert is_stable(dense, w) == frf.stable[i]
+
+
+def test_a_failed_eigensolve_keeps_the_sweep_and_says_why(monkeypatch):
+    """An eigensolve that fails at a point (here ARPACK, made to fail at every point above 1.05
+    rad/s) leaves the sweep whole: its points are kept, status complete, and the stability is
+    reported not computed with the count and the first failure, with no floquet arrays (no NaN
+    written for "unknown")."""
+    import scipy.sparse.linalg as spla
+
+    from jointfem.analysis import stability
+
+    real = stability.arnoldi_near
+
+    def failing(J, d1, d2, omega, **kw):
+        if omega > 1.05:
+            raise spla.ArpackNoConvergence("no convergence (test)", np.array([]), np.array([]))
+        return real(J, d1, d2, omega, **kw)
+
+    monkeypatch.setattr(stability, "arnoldi_near", failing)
+    frf = compute_frf(create_lumped(jenkins_chain()), SweepOptions(0.9, 1.2, Harmonics(5, 128),
+                                                                   ContinuationOptions(ds_max=0.05)))
+    assert frf.info["status"] == "complete" and frf.omega.max() >= 1.2
+    msg = frf.info["stability"]
+    assert msg.startswith("not computed: Hill's eigensolve failed at ") and "ArpackNoConvergence" in msg, msg
+    n_fail = int(msg.split("failed at ")[1].split(" of ")[0])
+    assert 0 < n_fail == int((frf.omega > 1.05).sum())
+    assert frf.stable is None and "floquet_max_real" not in frf.info["arrays"]
+
+
+def test_the_exact_condensation_leaves_stability_out_unless_asked():
+    """Its Hill problem is the full model's at every point (CondensedProblem.hill_matrices), far
+    larger than what Newton solves: "auto" leaves it out and says why; True computes it (above)."""
+    from jointfem.rom import build_rom
+
+    exact = build_rom(create_lumped(jenkins_chain(4)), "exact")
+    frf = compute_frf(exact, SweepOptions(0.9, 1.2, Harmonics(3, 64)))
+    assert frf.info["stability"].startswith("not computed: the exact condensation's stability is the full model's")
+    assert frf.stable is None

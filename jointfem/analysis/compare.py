@@ -158,7 +158,7 @@ def compare(structure: Structure, specs: list[MethodSpec], sweep, *, output: str
     ref_sweep = sweep if reference_ds_max is None else replace(
         sweep, continuation=replace(sweep.continuation, ds_max=reference_ds_max,
                                     ds0=min(sweep.continuation.ds0, reference_ds_max)))
-    num_freq = min(num_freq, structure.num_dofs)  # a small model has fewer (it refused a 1-DOF one)
+    num_freq = min(num_freq, structure.num_dofs)  # a model of fewer DOFs has no more
     w2, _ = eigen(structure.K_lin, structure.M, num_freq, what="full linearised model")
     w_ref = np.sqrt(w2)
     specs = [MethodSpec(reference, RomOptions())] + [s for s in specs if s.method not in ("full", reference)]

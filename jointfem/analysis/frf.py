@@ -30,10 +30,11 @@ class SweepOptions:
     harmonics: Harmonics = Harmonics(5, 256)
     continuation: ContinuationOptions = field(default_factory=ContinuationOptions)
     locate_peaks: bool = True  # every output's peak solved to the Newton tolerance (analysis.peaks)
-    # Floquet exponents of every point by Hill's method (analysis.stability): dense up to 1600
-    # first-order unknowns, else those near zero by shift-invert Arnoldi.  True always, False never,
-    # None ("auto") wherever the problem has Hill matrices, up to stability_auto_unknowns
-    # (Problem.hill_size) when that is set
+    # Floquet exponents of every point by Hill's method (analysis.stability): dense up to
+    # stability.DENSE_LIMIT first-order unknowns, else those near zero by shift-invert Arnoldi.  True
+    # always, False never, None ("auto") wherever the problem has Hill matrices and computes them by
+    # default (Problem.stability_not_by_default), up to stability_auto_unknowns (Problem.hill_size)
+    # when that is set
     stability: bool | None = None
     stability_auto_unknowns: int | None = None
     # warn when a point's harmonic truncation estimate (analysis.convergence) passes this: the
@@ -132,8 +133,11 @@ def compute_frf(model: Structure | Reduction, options: SweepOptions, *,
     # Hill's method needs the Jacobian at the point, which the continuation has just evaluated for
     # the tangent (the problem returns it again from its last evaluation)
     # (decided once, on the largest system the problem can have: the penalty ROM's grows)
-    stability = (options.stability if options.stability is not None
-                 else options.stability_auto_unknowns is None or problem.hill_size <= options.stability_auto_unknowns)
+    if options.stability is not None:
+        stability = options.stability
+    else:
+        stability = problem.stability_not_by_default is None and (
+            options.stability_auto_unknowns is None or problem.hill_size <= options.stability_auto_unknowns)
     exponent = ExponentTracker(problem)
 
     def record(U, omega):
@@ -253,10 +257,17 @@ def compute_frf(model: Structure | Reduction, options: SweepOptions, *,
         info["arrays"]["stability_change"] = change
     elif options.stability is False:
         info["stability"] = "not computed (stability off)"
+    elif not stability and problem.stability_not_by_default is not None:
+        info["stability"] = f"not computed: {problem.stability_not_by_default}"
     elif not stability:
         info["stability"] = (f"not computed: {problem.hill_size} unknowns > {options.stability_auto_unknowns}, "
                              f"the automatic limit (an eigensolve of twice the unknowns of Hill's problem per "
                              f"point; --stability on computes it)")
+    elif exponent.failures:
+        w_fail, what = exponent.failures[0]
+        info["stability"] = (f"not computed: Hill's eigensolve failed at {len(exponent.failures)} of {omega.size} "
+                             f"points (first at omega = {w_fail:.6g} rad/s: {what})")
+        log.warning(info["stability"])
     else:
         info["stability"] = f"not computed: {problem.no_stability or 'this problem has no Hill operators'}"
     if layout.pair_coords is not None:

@@ -568,7 +568,9 @@ def synthesize_frf(backbone: Backbone, scale: float = 1.0) -> dict:
     again at larger amplitude, the amplitude becomes reachable again beyond an unreachable stretch:
     a part of the response detached from the one that grows from rest (an isola), which the picture
     draws.  "peak_*" is then the largest amplitude of all (what the picture shows), "main_peak_*"
-    the first one, on the part connected to small amplitudes, and "detached" says so."""
+    the first one, on the part connected to small amplitudes, and "detached" says so.  Where the
+    backbone's last point is still reachable, the response goes on beyond the backbone's amplitude
+    range: "beyond_backbone" is True and that end counts as a peak (a lower bound of the true one)."""
     arr = backbone.info["arrays"]
     a, w, z = backbone.amplitude, backbone.omega, backbone.zeta
     m, f = arr["modal_mass_kg"], np.abs(arr["modal_force_N"]) * scale
@@ -586,15 +588,21 @@ def synthesize_frf(backbone: Backbone, scale: float = 1.0) -> dict:
     # the peak: where disc = 0 (the two branches meet), between the last reachable point and the next
     g = disc / w ** 4
     peaks = []
-    for i in np.flatnonzero(g[:-1] * g[1:] <= 0):
-        t = g[i] / (g[i] - g[i + 1]) if g[i] != g[i + 1] else 0.0
+    # a peak where a reachable point is followed by an unreachable one (the other way round is the
+    # foot of a detached part, not a peak)
+    for i in np.flatnonzero((g[:-1] >= 0) & (g[1:] < 0)):
+        t = g[i] / (g[i] - g[i + 1])
         la = np.log(a[i]) + t * (np.log(a[i + 1]) - np.log(a[i]))
         peaks.append((float(np.exp(la)), float(np.sqrt(np.interp(t, [0, 1], [base[i], base[i + 1]])))))
+    beyond = bool(a.size) and g[-1] >= 0
+    if beyond:
+        peaks.append((float(a[-1]), float(np.sqrt(base[-1]))))
     nan = (float("nan"), float("nan"))
     main = peaks[0] if peaks else nan
     top = max(peaks) if peaks else nan
     return {"omega": om, "amplitude": a, "peak_amplitude": top[0], "peak_omega": top[1],
-            "main_peak_amplitude": main[0], "main_peak_omega": main[1], "detached": bool(peaks) and top != main}
+            "main_peak_amplitude": main[0], "main_peak_omega": main[1], "detached": bool(peaks) and top != main,
+            "beyond_backbone": beyond and top == peaks[-1]}
 
 
 @dataclass

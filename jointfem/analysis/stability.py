@@ -49,6 +49,7 @@ STABILITY_RTOL = 1e-7  # stable when max Re s <= STABILITY_RTOL * omega (Hill's 
 DENSE_LIMIT = 200
 SHIFT = 1e-3  # sigma / omega: keeps the factorised matrix regular where J is singular (at a fold)
 ARNOLDI_TOL = 1e-9  # ARPACK's relative tolerance on mu = 1 / (s - sigma) (arnoldi_near)
+NCV_FACTOR = 2.5  # ARPACK's Krylov space over the count of eigenvalues asked (arnoldi_near)
 FIRST = 24  # eigenvalues Arnoldi asks for first at a branch's first point (arnoldi_near)
 
 
@@ -140,8 +141,9 @@ def arnoldi_near(J, d1, d2, omega: float, *, radius: float = 1.2, first: int = 2
 
     ARPACK's tolerance is relative to |mu|, so an exponent's error is about ARNOLDI_TOL |s - sigma|,
     below 1.2e-9 omega inside the radius: 80 times under STABILITY_RTOL.  Its Krylov space holds
-    2.5 times the eigenvalues asked for (scipy's default is 2 times): on the beam demo the largest
-    real parts came out the same to 5e-12 omega, in 2.7 times less time (40 points of its branch)."""
+    NCV_FACTOR times the eigenvalues asked for (scipy's default is 2).  On 40 points of the beam
+    demo's branch, 32 asked at once with this tolerance and space gave the same largest real parts
+    (to 5e-12 omega) in 2.7 times less time than 24 then 48 asked, tolerance 1e-12, twice the count."""
     n = J.shape[0]
     sigma = SHIFT * abs(omega)
     sparse = sp.issparse(J)
@@ -170,7 +172,7 @@ def arnoldi_near(J, d1, d2, omega: float, *, radius: float = 1.2, first: int = 2
     v0 = rng.standard_normal(2 * n)
     while True:
         mu = spla.eigs(spla.LinearOperator((2 * n, 2 * n), matvec=op, dtype=float), k=k, which="LM",
-                       v0=v0, return_eigenvectors=False, ncv=min(2 * n, max(int(2.5 * k) + 1, 40)),
+                       v0=v0, return_eigenvectors=False, ncv=min(2 * n, max(int(NCV_FACTOR * k) + 1, 40)),
                        tol=ARNOLDI_TOL)
         mu = mu[np.abs(mu) > 1e-300]
         s = sigma + 1.0 / mu
@@ -184,14 +186,24 @@ class ExponentTracker:
     """``leading_exponent`` point after point along a branch.  The count of eigenvalues Arnoldi asks
     for starts from what the previous point needed (a quarter more, at least 8 more), so a branch
     mostly pays for one Arnoldi run a point instead of a run that asks too few and one that asks
-    twice as many: on the beam demo (1320 unknowns) each point needs 22-26."""
+    twice as many: on the beam demo (1320 unknowns) each point needs 22-26.  Dense or Arnoldi is
+    decided once, on the largest Hill problem the branch can have (``Problem.hill_size``): the
+    penalty ROM's size changes along a branch, and the two paths differ by round-off that must not
+    show as a change of stability.  An eigensolve that fails (ARPACK without convergence, a singular
+    factor) gives None for the point and is counted in ``failures``: the sweep keeps its points."""
 
     def __init__(self, problem: Problem):
         self.problem = problem
         self.first = FIRST
+        self.dense = 2 * problem.hill_size <= DENSE_LIMIT
+        self.failures: list[tuple[float, str]] = []  # (omega, what failed)
 
     def __call__(self, x: np.ndarray, lam: float, evaluation: Evaluation) -> complex | None:
-        s, needed = _leading(self.problem, x, lam, evaluation, None, self.first)
+        try:
+            s, needed = _leading(self.problem, x, lam, evaluation, self.dense, self.first)
+        except (spla.ArpackNoConvergence, spla.ArpackError, RuntimeError, np.linalg.LinAlgError) as exc:
+            self.failures.append((float(lam), f"{type(exc).__name__}: {exc}"))
+            return None
         if needed is not None:
             self.first = max(FIRST, needed + max(8, needed // 4))
         return s

@@ -15,4 +15,7 @@ import numba
 PRIORITY = ["omp", "tbb", "workqueue"]
 
 if "NUMBA_THREADING_LAYER" not in os.environ and "NUMBA_THREADING_LAYER_PRIORITY" not in os.environ:
+    # in the environment as well: numba reads its configuration again (config.reload_config) when
+    # a NUMBA_ variable changes, which would put its own order back
+    os.environ["NUMBA_THREADING_LAYER_PRIORITY"] = " ".join(PRIORITY)
     numba.config.THREADING_LAYER_PRIORITY = PRIORITY

@@ -449,6 +449,9 @@ class CondensedProblem(KeepsLastEvaluation, Problem):
             out.append(data[k].T @ (Y[h.block_cos(k)] - 1j * Y[h.block_sin(k)]))
         return out
 
+    stability_not_by_default = ("the exact condensation's stability is the full model's Hill problem at every "
+                                "point, far larger than the condensed one (--stability on computes it)")
+
     def hill_matrices(self, x, lam, evaluation):
         """Hill's problem of the full model at the full field of the point (full_coefficients): the
         condensed dynamic stiffness S_k(omega) is not polynomial in the exponent, the full model's

@@ -124,6 +124,9 @@ class Problem(ABC):
     adaptation: Adaptive | None = None
     tol_floor: float = 0.0
     no_stability: str | None = None  # why the points' Floquet exponents are not computed (None: they are)
+    # None, or why a sweep's default ("auto") leaves the stability out although it can compute it
+    # (--stability on computes it): where Hill's problem is far larger than the one Newton solves
+    stability_not_by_default: str | None = None
 
     @property
     def num_coefficients(self) -> int:

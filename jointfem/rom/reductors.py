@@ -19,6 +19,15 @@ MODAL = ("penalty", "tvd")  # the reductors whose basis starts from the stuck st
 
 def build_rom(structure: Structure, method: str, options: RomOptions = RomOptions()) -> Reduction:
     """Build the ROM of ``method`` (one of METHODS but 'full').  Records the offline seconds."""
+    check_options(method, options)
+    t0 = time.perf_counter()
+    rom = REDUCTORS[method](structure, options)
+    rom.offline_s = time.perf_counter() - t0
+    return rom
+
+
+def check_options(method: str, options: RomOptions) -> None:
+    """Refuse, before any work, a method or a count of modes and TVDs it cannot take."""
     if method not in REDUCTORS:
         raise RomError(f"unknown reduction method {method!r}; choose one of {', '.join(METHODS[1:])}")
     if method != "exact" and (options.modes < 0 or options.tvd < 0):
@@ -27,7 +36,3 @@ def build_rom(structure: Structure, method: str, options: RomOptions = RomOption
         # (their basis is built on the stuck modes: without one, there is nothing to add the static
         # modes and derivatives to, and the problem would have no unknowns)
         raise RomError(f"{method}: modes = {options.modes}: this method needs at least one vibration mode (--modes >= 1)")
-    t0 = time.perf_counter()
-    rom = REDUCTORS[method](structure, options)
-    rom.offline_s = time.perf_counter() - t0
-    return rom
