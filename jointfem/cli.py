@@ -273,9 +273,9 @@ def _set_arg(p) -> None:
 
 def _stability_arg(p) -> None:
     p.add_argument("--stability", choices=("auto", "on", "off"), default="auto",
-                   help="Floquet exponents of every point (Hill's method): auto (default) and on compute them wherever "
-                        "the method has Hill matrices, at any size (dense up to 200 first-order unknowns, else the "
-                        "exponents near zero by shift-invert Arnoldi); off skips them")
+                   help="Floquet exponents of every point (Hill's method): auto (default) computes them wherever "
+                        "the method has Hill matrices, at any size, but for the exact condensation (whose Hill "
+                        "problem is the full model's); on computes them there too; off skips them")
 
 
 def build_parser() -> argparse.ArgumentParser:
