@@ -46,6 +46,13 @@ def readable_axes(ax, *, log_y: bool = True) -> None:
         ax.tick_params(axis="y", which="minor", labelsize=7)
 
 
+def plot_unconverged(ax, x, y, bad, *, label: str, **kw):
+    """A thick dotted line over the points flagged ``bad`` (and the segments next to them): where
+    the harmonic truncation estimate says the branch is not converged in H."""
+    on = bad | np.append(bad[1:], False) | np.append(False, bad[:-1])
+    ax.plot(x, np.where(on, y, np.nan), ls=":", lw=3, label=label, **kw)
+
+
 def plot_branch(ax, x, y, stable, *, label: str, **kw):
     """A branch as a line, solid where it is stable and dashed where it is not (both where the
     stability is unknown: solid).  A segment is stable when both its end points are."""
@@ -85,10 +92,9 @@ def plot_frf(frf: FrequencyResponse, path: Path, *, title: str = "", harmonic_to
         line = plot_branch(ax, f_hz, a, frf.stable, label=label)
         ax.plot(f_hz, frf.half_peak_to_peak(dof), ":", color=line.get_color(), lw=1, label=f"{name}: half peak-to-peak")
         if bad is not None:
-            on = bad | np.append(bad[1:], False) | np.append(False, bad[:-1])
-            ax.plot(f_hz, np.where(on, a, np.nan), ls=":", lw=3, color=line.get_color(), alpha=0.6,
-                    label=f"{name}: H = {frf.harmonics.H} not converged (truncation estimate "
-                          f"up to {np.max(he):.3g} > {harmonic_tol:g})")
+            plot_unconverged(ax, f_hz, a, bad, color=line.get_color(), alpha=0.6,
+                             label=f"{name}: H = {frf.harmonics.H} not converged (truncation estimate "
+                                   f"up to {np.max(he):.3g} > {harmonic_tol:g})")
     ax.set_ylabel("amplitude [m]")
     ax.set_yscale("log")
     readable_axes(ax)
@@ -135,11 +141,9 @@ def plot_levels(curves: list[tuple[str, FrequencyResponse]], output: str, path: 
         line = plot_branch(ax, f, a, frf.stable, label=label)
         he = frf.info.get("arrays", {}).get("harmonic_error")
         if he is not None and np.max(he) > harmonic_tol:
-            bad = np.asarray(he) > harmonic_tol
-            on = bad | np.append(bad[1:], False) | np.append(False, bad[:-1])
-            ax.plot(f, np.where(on, a, np.nan), ls=":", lw=3, color=line.get_color(),
-                    label=f"{name}: H = {frf.harmonics.H} not converged (truncation "
-                          f"estimate up to {np.max(he):.2f} > {harmonic_tol:g})")
+            plot_unconverged(ax, f, a, np.asarray(he) > harmonic_tol, color=line.get_color(),
+                             label=f"{name}: H = {frf.harmonics.H} not converged (truncation "
+                                   f"estimate up to {np.max(he):.2f} > {harmonic_tol:g})")
     ax.set_xlabel("frequency [Hz]")
     ax.set_ylabel(f"{output} receptance [m/N]")
     ax.set_yscale("log")
