@@ -611,7 +611,8 @@ def save_shape(structure: Structure, rom: Reduction | None, out: Path) -> None:
     def write(p):
         with open(p, "wb") as fh:
             np.savez_compressed(fh, node_coords=geom["node_coords"], dof_node=geom["dof_node"],
-                                dof_comp=geom["dof_comp"], **extra)
+                                dof_comp=geom["dof_comp"], **extra,
+                                **{k: geom[k] for k in ("cell_nodes", "vtk_cell_type") if k in geom})
 
     atomic_write(Path(out) / "shape.npz", write)
 

@@ -340,7 +340,7 @@ def build_parser() -> argparse.ArgumentParser:
                     help="also the contact-state pictures (as `jointfem plot`; 'peak' is the largest amplitude)")
     _set_arg(nm)
     nm.set_defaults(func=cmd_nma)
-    ex = sub.add_parser("export", help="ParaView files (VTU) of a result folder at one branch point")
+    ex = sub.add_parser("export", help="ParaView files (VTU, XDMF) of a result folder at one branch point")
     ex.add_argument("folder", help="a folder written by `jointfem frf`")
     grp = ex.add_mutually_exclusive_group()
     grp.add_argument("--point", default="peak", help="'peak' (default) or a branch point index")

@@ -2,16 +2,17 @@
 
 At a chosen branch point:
 
-* ``field_<i>.vtu`` (continuum runs, which write shape.npz): every node with its displacement
-  harmonics as vector fields, ``u_0`` (the mean), ``u_<k>_cos`` and ``u_<k>_sin`` for k = 1..H (m),
-  and the first harmonic's amplitude ``|u_1|`` (m).  A ROM's coordinates are expanded to the nodes
-  through its basis;
+* ``field_<i>.vtu`` and ``field_<i>.xdmf`` (continuum runs, which write shape.npz): the mesh's
+  cells with the displacement harmonics at every node as vector fields, ``u_0`` (the mean),
+  ``u_<k>_cos`` and ``u_<k>_sin`` for k = 1..H (m), and the first harmonic's amplitude ``|u_1|``
+  (m).  A ROM's coordinates are expanded to the nodes through its basis.  ParaView's "Warp By
+  Vector" on ``u_1_cos`` draws the deformed body; dolfinx's users open the XDMF (its data inline
+  as XML: no HDF5 library needed);
 * ``pairs_<i>.vtu`` (any model whose pairs have positions): every contact pair as a point with its
   dissipated energy per cycle (J), tangential amplitude (m), peak normal force (N) and the share of
   the period it spends stuck, slipping and separated.
 
-Points are vertices (the meshes' cells are not kept in a result folder); ParaView's "Point
-Gaussian" representation draws them.  Written with meshio.
+Pairs are vertices; ParaView's "Point Gaussian" representation draws them.  Written with meshio.
 """
 from __future__ import annotations
 
@@ -22,6 +23,27 @@ import numpy as np
 from .harmonics import Harmonics
 from .results import OutputError, atomic_write
 from .viz import fractions, load, pick_point
+
+
+# VTK's cell types (as dolfinx.plot gives them, jointfem.fem.continuum) -> meshio's names.  At
+# degree 2 dolfinx gives VTK's Lagrange cells (69-72); written as VTK's quadratic cells, whose node
+# order is the same at degree 2 (tests/test_export.py checks every edge node at its edge's middle),
+# because XDMF has no Lagrange cells.
+_CELLS = {(5, 3): "triangle", (9, 4): "quad", (10, 4): "tetra", (12, 8): "hexahedron",
+          (69, 6): "triangle6", (70, 9): "quad9", (71, 10): "tetra10", (72, 27): "hexahedron27"}
+
+
+def _cells(shape: dict, num_nodes: int) -> list:
+    """meshio's cell blocks of a shape.npz: the mesh's cells, or (a folder written before they were
+    kept) every node as a vertex."""
+    if "cell_nodes" in shape:
+        nodes = np.asarray(shape["cell_nodes"], dtype=np.int64)
+        name = _CELLS.get((int(shape["vtk_cell_type"]), nodes.shape[1]))
+        if name is None:
+            raise OutputError(f"shape.npz: VTK cell type {int(shape['vtk_cell_type'])} with {nodes.shape[1]} "
+                              f"nodes is not one jointfem writes")
+        return [(name, nodes)]
+    return [("vertex", np.arange(num_nodes)[:, None])]
 
 
 def export_point(folder, *, point: str | None = "peak", omega: float | None = None, out=None) -> list[Path]:
@@ -57,9 +79,12 @@ def export_point(folder, *, point: str | None = "peak", omega: float | None = No
         fields["|u_1|"] = np.sqrt(np.sum(fields["u_1_cos"] ** 2 + fields["u_1_sin"] ** 2, axis=1))
         pts = np.zeros((X.shape[0], 3))
         pts[:, :X.shape[1]] = X
-        mesh = meshio.Mesh(pts, [("vertex", np.arange(X.shape[0])[:, None])], point_data=fields)
+        mesh = meshio.Mesh(pts, _cells(shape, X.shape[0]), point_data=fields)
         path = out / f"field_{i}.vtu"
         atomic_write(path, lambda p: meshio.write(p, mesh, file_format="vtu"))
+        written.append(path)
+        path = out / f"field_{i}.xdmf"
+        atomic_write(path, lambda p: meshio.write(p, mesh, file_format="xdmf", data_format="XML"))
         written.append(path)
 
     if "pair_coords" in data and data["pair_coords"].size:

@@ -157,10 +157,13 @@ def test_frf_picture_has_rom_size_axis(separating):
     assert int(lower[:, spine + 2:].sum()) > 200
 
 def test_paraview_export_holds_the_solved_fields(tmp_path):
-    """`jointfem export` at a point of a continuum run: field_<i>.vtu carries every node's harmonics
-    (the first harmonic at the output node equals the solved coefficients), and pairs_<i>.vtu every
-    pair's energy and state shares as in branch.npz."""
+    """`jointfem export` at a point of a continuum run: field_<i>.vtu and field_<i>.xdmf carry the
+    mesh's cells (60 biquadratic quadrilaterals, as VTK's own readers see them) and every node's
+    harmonics (the first harmonic at the output node equals the solved coefficients), and
+    pairs_<i>.vtu every pair's energy and state shares as in branch.npz."""
     import meshio
+    import pyvista as pv
+    from vtkmodules.vtkIOXdmf2 import vtkXdmfReader  # ParaView's XDMF reader
 
     out = tmp_path / "l2"
     r = subprocess.run([sys.executable, "-m", "jointfem", "frf", str(ROOT / "demos" / "lap2d.toml"), "--harmonics", "1",
@@ -172,12 +175,21 @@ def test_paraview_export_holds_the_solved_fields(tmp_path):
     assert r.returncode == 0, r.stderr
     b = load_branch(out / "branch.npz")
     with np.load(out / "shape.npz") as z:
-        node, comp = z["dof_node"], z["dof_comp"]
+        node, comp, num_nodes = z["dof_node"], z["dof_comp"], z["node_coords"].shape[0]
     field = meshio.read(out / "export" / "field_3.vtu")
     q = int(b["num_dofs"])
     dof = int(b["output_dofs"][0])
     np.testing.assert_allclose(field.point_data["u_1_cos"][node[dof], comp[dof]], b["U"][3, q + dof], rtol=1e-12)
     np.testing.assert_allclose(field.point_data["u_1_sin"][node[dof], comp[dof]], b["U"][3, 2 * q + dof], rtol=1e-12)
+    grid = pv.read(out / "export" / "field_3.vtu")
+    assert grid.n_cells == 60 and set(grid.celltypes) == {28}  # VTK_BIQUADRATIC_QUAD
+    assert grid.n_points == num_nodes
+    reader = vtkXdmfReader()
+    reader.SetFileName(str(out / "export" / "field_3.xdmf"))
+    reader.Update()
+    xdmf = pv.wrap(reader.GetOutputDataObject(0))
+    assert xdmf.n_cells == 60 and set(xdmf.celltypes) == {28}
+    np.testing.assert_array_equal(np.asarray(xdmf.point_data["u_1_cos"]), field.point_data["u_1_cos"])
     pairs = meshio.read(out / "export" / "pairs_3.vtu")
     np.testing.assert_allclose(pairs.point_data["energy_J"], b["pair_energy_J"][3])
     share = sum(pairs.point_data[k] for k in ("stick_share", "slip_share", "separated_share"))

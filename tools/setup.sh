@@ -22,7 +22,8 @@ esac
 # software rasteriser); without them a picture segfaults (the wheel finds no X, EGL or OSMesa).
 # libmumps-dev: dmumps_c.h, which jointfem.mumps reads to call MUMPS directly (PETSc's development
 # package brings it already; named so that it is not left to that).
-APT_PKGS="python3-dolfinx python3-petsc4py python3-slepc4py python3-gmsh python3-scipy python3-mpi4py python3-venv mpi-default-bin libopenblas0-pthread libegl1 libegl-mesa0 libgl1-mesa-dri libmumps-dev"
+# python3-h5py: meshio's XDMF writer imports it (jointfem export's field_<i>.xdmf, written as inline XML).
+APT_PKGS="python3-dolfinx python3-petsc4py python3-slepc4py python3-gmsh python3-scipy python3-mpi4py python3-venv mpi-default-bin libopenblas0-pthread libegl1 libegl-mesa0 libgl1-mesa-dri libmumps-dev python3-h5py"
 missing=""
 for p in $APT_PKGS; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing="$missing $p"

@@ -118,6 +118,23 @@ def owned_blocks(space) -> tuple[np.ndarray, np.ndarray]:
         space.tabulate_dof_coordinates()[:n]
 
 
+def vtk_cells(space) -> tuple[np.ndarray, int]:
+    """The rank's owned cells as rows of local block indices in VTK's node order, and their VTK
+    cell type (one type per mesh).  dolfinx orders a cell's nodes its own way; ``dolfinx.plot``
+    permutes them to VTK's, named ``create_vtk_mesh`` in 0.5.2 and ``vtk_mesh`` from 0.7 (0.9 on
+    trixie); both return the flat ``[n, i_0 .. i_n-1, n, ...]`` layout over the owned cells."""
+    import dolfinx.plot as plot
+
+    make = getattr(plot, "vtk_mesh", None) or plot.create_vtk_mesh
+    topology, types, _ = make(space)
+    types = np.asarray(types)
+    if types.size == 0:
+        return np.zeros((0, 0), dtype=np.int32), 0
+    if np.any(types != types[0]):
+        raise NotImplementedError("meshes of more than one cell type")
+    return np.asarray(topology).reshape(types.size, -1)[:, 1:], int(types[0])
+
+
 def local_to_global(space, local: np.ndarray) -> np.ndarray:
     return np.asarray(space.dofmap.index_map.local_to_global(np.asarray(local, dtype=np.int32)), dtype=np.int64)
 

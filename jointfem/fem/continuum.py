@@ -199,6 +199,11 @@ class Mesh:
     # faces' area under its washer, m^2 (a clamped outer face excluded): the consistent nodal shares
     # of a uniform washer pressure, computed where the spec's preload is "static"
     washers: np.ndarray | None = None
+    # (num_cells, nodes per cell): every cell's canonical node ids in VTK's order, and its VTK cell
+    # type (5 triangle, 9 quad, 10 tetra, 12 hexahedron; 69-72 their Lagrange forms at degree 2),
+    # for the ParaView export of the deformed body
+    cell_nodes: np.ndarray | None = None
+    vtk_cell_type: int = 0
 
 
 @dataclass
@@ -294,6 +299,14 @@ def build_mesh(spec: ContinuumSpec, comm=None) -> Mesh:
     coords = all_X[order]
     sub = all_sub[order].astype(np.int32)
 
+    local_cells, vtk_type = compat.vtk_cells(V)
+    per_cell = comm.allreduce(local_cells.shape[1], op=MPI.MAX)  # a rank may own no cell
+    rows = canon[compat.local_to_global(V, local_cells.ravel())].reshape(-1, per_cell) if local_cells.size \
+        else np.zeros((0, per_cell), dtype=np.int64)
+    cell_nodes = _allgather(comm, rows)
+    cell_nodes = cell_nodes[np.lexsort(cell_nodes.T[::-1])]  # the same order whatever the partition's
+    vtk_type = comm.allreduce(vtk_type, op=MPI.MAX)
+
     K = _gather_matrix(Kp, canon, d, comm, num_nodes)
     M = _gather_matrix(Mp, canon, d, comm, num_nodes)
 
@@ -338,7 +351,8 @@ def build_mesh(spec: ContinuumSpec, comm=None) -> Mesh:
     Mp.destroy()
     return Mesh(d, coords, sub, K, M, clamped, contact, area, normal, layout.extent,
                 dict(asm.timings, gather_s=t3 - t2),
-                cells=mesh.topology.index_map(d).size_global, washers=washers)
+                cells=mesh.topology.index_map(d).size_global, washers=washers, cell_nodes=cell_nodes,
+                vtk_cell_type=vtk_type)
 
 
 # Gauss points per direction on a face for the washer's disc (its indicator is not a polynomial):
@@ -655,6 +669,8 @@ def create_continuum(spec: ContinuumSpec, comm=None, mesh: Mesh | None = None) -
             "nodes": int(nn), "cells": int(mesh.cells), "degree": spec.degree, "timings": timings,
             "supported": bool(mesh.clamped.size or spec.supports), "force_node": mesh.coords[fnode].tolist(), **pair_info,
             # for pictures of the deformed shape (jointfem.viz): where each DOF sits and points
-            "geometry": {"node_coords": mesh.coords, "dof_node": node_of, "dof_comp": comp_of}}
+            "geometry": {"node_coords": mesh.coords, "dof_node": node_of, "dof_comp": comp_of,
+                         **({} if mesh.cell_nodes is None else
+                            {"cell_nodes": mesh.cell_nodes, "vtk_cell_type": mesh.vtk_cell_type})}}
     return Structure(K=K, M=M, D=D, fc=fc, fs=np.zeros_like(fc), contacts=groups, dof_names=names,
                      outputs=outputs, info=info, substructure=mesh.sub[node_of].astype(np.int32))
