@@ -9,8 +9,9 @@ from __future__ import annotations
 import dataclasses
 import json
 import logging
-import re
 import os
+import re
+import shutil
 import sys
 import time
 import tomllib
@@ -413,22 +414,51 @@ def load_force_resume(folder: Path, scene: Scene, method: str, rom_options: RomO
     return b
 
 
-# files a run of `jointfem frf` (and `jointfem plot`) writes into its folder
-OWNED = ("frf.csv", "branch.npz", "summary.json", "shape.npz", "frf.png", "states_branch.png", "interface_*.png",
-         "shape_*.png")
+# Every file and subfolder a command writes into a result folder.  A folder holds one run: a run
+# (frf, nma, force, compare, modes) first removes whatever any command wrote there, then writes its
+# own; `plot` and `export` add to the run's folder.  What a run removes that is not its own (another
+# command's files, an export/ folder) it names in one warning.  Files jointfem does not write are
+# left alone, and so is an export/ folder holding one (docs/scenes.md, "Output folders").
+WRITES = {
+    "frf": ("frf.csv", "branch.npz", "summary.json", "shape.npz", "frf.png"),
+    "nma": ("backbone.csv", "branch.npz", "summary.json", "shape.npz", "backbone.png", "frf_synthesized.png"),
+    "force": ("force.csv", "branch.npz", "summary.json", "force.png"),
+    "compare": ("compare.csv", "compare.md", "compare_frf.png", "compare_pareto.png", "compare_backbone.png"),
+    "modes": ("modes.csv", "modes.npz"),
+    "plot": ("states_branch.png", "interface_*.png", "shape_*.png"),
+    "export": ("export",),
+}
+EXPORT_WRITES = ("field_*.vtu", "field_*.xdmf", "pairs_*.vtu")
 
 
-def remove_stale(out: Path, owned: tuple = OWNED) -> list[Path]:
-    """Remove from a result folder the files an earlier run wrote there (``owned``: a sweep's OWNED,
-    or NMA_OWNED), so that no picture of another scene survives a new run into the same folder;
-    other files are left alone."""
+def remove_stale(out: Path, command: str) -> list[Path]:
+    """Clear the result folder ``out`` for a run of ``command`` (WRITES' rule above).  Returns what
+    was removed."""
     out = Path(out)
-    if not (out / "summary.json").is_file():
+    if not out.is_dir():
         return []
-    gone = sorted({p for pattern in owned for p in out.glob(pattern) if p.is_file()})  # patterns overlap
-    for p in gone:
-        p.unlink()
-    return gone
+    found = sorted({p for patterns in WRITES.values() for pattern in patterns for p in out.glob(pattern)})
+    own = {p for pattern in WRITES[command] + WRITES["plot"] for p in out.glob(pattern)}
+    removed, kept, foreign = [], [], []
+    for p in found:
+        if p.is_dir():
+            if not all(q.is_file() and any(q.match(e) for e in EXPORT_WRITES) for q in p.iterdir()):
+                kept.append(p)
+                continue
+            shutil.rmtree(p)
+        elif p.is_file():
+            p.unlink()
+        else:
+            continue
+        removed.append(p)
+        if p not in own:
+            foreign.append(p.name + ("/" if p.name == "export" else ""))
+    if foreign:
+        log.warning("%s: removed what an earlier run wrote there, before writing %s's files: %s", out, command,
+                    ", ".join(foreign))
+    for p in kept:
+        log.warning("%s: left %s/ alone: it holds files jointfem export does not write", out, p.name)
+    return removed
 
 
 def software() -> dict:
@@ -491,6 +521,7 @@ def write_modes(modes: dict, structure: Structure, out: Path) -> None:
         vals = [st[c][k] for c in ("omega_rad_s", "freq_Hz", "damping_ratio", "modal_force_N")]
         vals += [fr[c][k] for c in ("omega_rad_s", "freq_Hz", "damping_ratio", "modal_force_N")]
         rows.append(",".join([str(k + 1)] + ["" if not np.isfinite(v) else f"{v:.10g}" for v in vals]))
+    remove_stale(out, "modes")
     atomic_write(Path(out) / "modes.csv", lambda p: Path(p).write_text("\n".join(rows) + "\n"))
 
     def npz(p):
@@ -516,6 +547,7 @@ def write_force(response, scene: Scene, out: Path, *, method: str, rom_options: 
     table = np.column_stack(cols)
     if not np.all(np.isfinite(table)):
         raise OutputError("force sweep holds a non-finite value; nothing written")
+    remove_stale(out, "force")
     atomic_write(out / "force.csv", lambda p: np.savetxt(p, table, delimiter=",", header=",".join(header),
                                                           comments="", fmt="%.12e"))
 
@@ -650,7 +682,7 @@ def write_frf(solution: SceneSolution, scene: Scene, out: Path, *, method: str, 
                    "total": t_end - (wall_start if wall_start is not None else t_end)},
     }
     summary["software"] = software()
-    remove_stale(out)
+    remove_stale(out, "frf")
     summary = save_frf(frf, out, summary=summary)
     save_shape(structure, rom, out)
     plot_frf(frf, out / "frf.png", title=f"{scene.name} ({method}, H={frf.harmonics.H})")
@@ -683,6 +715,7 @@ def compare_scene(scene: Scene, methods: str, defaults: RomOptions, *, out: Path
         raise SceneError(scene.path, "--output", output, f"not an output of the scene ({', '.join(structure.outputs)})")
     results = compare(structure, specs, sweep_options(scene, stability=stability), output=output, progress=progress,
                       reference=reference)
+    remove_stale(out, "compare")
     write_table([r.row() for r in results], out / "compare.csv")
     md = (f"# {scene.name}: ROMs against {'full order' if reference == 'full' else 'the exact condensation'}"
           f"\n\nScene {scene.path}, output {output}, "
@@ -691,10 +724,6 @@ def compare_scene(scene: Scene, methods: str, defaults: RomOptions, *, out: Path
     atomic_write_text(out / "compare.md", md)
     plot_compare(results, output, out / "compare_frf.png", out / "compare_pareto.png", title=scene.name)
     return md
-
-
-NMA_OWNED = ("backbone.csv", "branch.npz", "summary.json", "shape.npz", "backbone.png", "frf_synthesized.png",
-             "states_branch.png", "interface_*.png", "shape_*.png")
 
 
 @dataclass
@@ -806,7 +835,7 @@ def write_nma(solution: NmaSolution, scene: Scene, out: Path, *, method: str, ro
     if not np.all(np.isfinite(table)) or not np.all(np.isfinite(bb.U)):
         raise OutputError("the backbone holds a non-finite value; nothing written")
     out = Path(out)
-    remove_stale(out, NMA_OWNED + OWNED)  # an earlier run's files (a sweep's too) in this folder
+    remove_stale(out, "nma")
     atomic_write(out / "backbone.csv", lambda p: np.savetxt(p, table, delimiter=",", header=",".join(header),
                                                              comments="", fmt="%.12e"))
 
@@ -888,6 +917,7 @@ def compare_nma_scene(scene: Scene, methods: str, defaults: RomOptions, *, out: 
     check_nma(scene, structure, opts)
     results = compare_backbones(structure, specs, opts, reference=reference, progress=progress)
     rows = [r.row() for r in results]
+    remove_stale(out, "compare")
     write_table(rows, out / "compare.csv")
     head = ("| method | size | status | points | offline s | online s | omega rel err | zeta rel err | "
             "amplitudes |")

@@ -383,17 +383,46 @@ def test_import_from_the_folder_above_a_clone_named_jointfem(tmp_path):
     assert r.stdout.strip().endswith("jointfem/__init__.py")
 
 
-def test_an_nma_run_into_a_sweeps_folder_clears_each_old_file_once(tmp_path):
-    """The sweep's and the backbone's own files overlap (branch.npz, summary.json, pictures): a
-    backbone written where a sweep was removes each old file once (before: it unlinked branch.npz
-    twice and failed after the whole computation)."""
-    from jointfem.app import NMA_OWNED, OWNED, remove_stale
+def test_a_run_replaces_what_any_command_wrote_and_names_what_was_not_its_own(tmp_path, caplog):
+    """Issue 50, item 14: a folder holds one run.  Before, a sweep left an earlier backbone's files and
+    an export/ folder of another scene beside its own without a word, and a force run an earlier
+    sweep's frf.csv and frf.png.  Now a run removes whatever any command wrote there (each file once,
+    though the commands' names overlap), names in one warning what was not its own, and leaves alone
+    the user's files and an export/ folder holding one."""
+    import logging
 
-    for name in ("summary.json", "branch.npz", "frf.csv", "interface_3.png", "mine.txt"):
-        (tmp_path / name).write_text("x")
-    gone = remove_stale(tmp_path, NMA_OWNED + OWNED)
-    assert sorted(p.name for p in gone) == ["branch.npz", "frf.csv", "interface_3.png", "summary.json"]
-    assert [p.name for p in tmp_path.iterdir()] == ["mine.txt"]
+    from jointfem import cli
+
+    scene = str(ROOT / "demos" / "sdof_jenkins.toml")
+    out = tmp_path / "run"
+    out.mkdir()
+    for name in ("backbone.csv", "frf_synthesized.png", "branch.npz", "summary.json", "interface_3.png", "mine.txt"):
+        (out / name).write_text("x")
+    (out / "export").mkdir()
+    for name in ("field_3.vtu", "field_3.xdmf", "pairs_3.vtu"):
+        (out / "export" / name).write_text("x")
+    with caplog.at_level(logging.WARNING, logger="jointfem"):
+        assert cli.main(["frf", scene, "--out", str(out), "--quiet"]) == 0
+    names = sorted(p.name for p in out.iterdir())
+    assert names == ["branch.npz", "frf.csv", "frf.png", "mine.txt", "summary.json"]
+    said = [r.getMessage() for r in caplog.records if "removed what an earlier run wrote" in r.getMessage()]
+    assert len(said) == 1 and said[0].endswith(": backbone.csv, export/, frf_synthesized.png")
+
+    caplog.clear()  # the same command again: its own files are replaced without a word
+    with caplog.at_level(logging.WARNING, logger="jointfem"):
+        assert cli.main(["frf", scene, "--out", str(out), "--quiet"]) == 0
+    assert not [r for r in caplog.records if "removed" in r.getMessage()]
+
+    (out / "export").mkdir()
+    (out / "export" / "notes.txt").write_text("mine")
+    caplog.clear()
+    with caplog.at_level(logging.WARNING, logger="jointfem"):
+        assert cli.main(["force", scene, "--omega", "1.3", "--scale", "0.1", "1", "--out", str(out), "--quiet"]) == 0
+    names = sorted(p.name for p in out.iterdir())
+    assert names == ["branch.npz", "export", "force.csv", "force.png", "mine.txt", "summary.json"]
+    said = " ".join(r.getMessage() for r in caplog.records)
+    assert "frf.csv, frf.png" in said and "left export/ alone" in said
+    assert (out / "export" / "notes.txt").read_text() == "mine"
 
 
 def test_counts_the_methods_cannot_use_are_refused_with_the_option_named(tmp_path, capsys):
