@@ -219,21 +219,26 @@ def _memory_total() -> float:
 
 def check_forced_resonances(scene: Scene, structure: Structure, max_dofs: int = 2000) -> None:
     """Refuse, with one line, a forced undamped resonance in the sweep's range that nothing can
-    bound: a stuck mode with omega in omega_range, no viscous damping, a share of the force, and no
-    relative motion along any friction component (friction then cannot dissipate its energy).  Its
-    linear response is infinite there, and the sweep would fail on a NaN.  (An undamped mode that
-    moves a slider is left alone: friction holds it, tests/test_extremes_systems.py.)  Models of
-    more than ``max_dofs`` DOFs are not checked (their dense eigensolve would cost more than it saves)."""
+    bound: a mode of small vibrations about rest (Structure.K_rest: pairs stuck, open gaps open)
+    with omega in omega_range, no viscous damping, a share of the force, and no relative motion
+    along any friction component (friction then cannot dissipate its energy) or any component
+    whose law engages away from rest (a unilateral spring short of its gap: its stiffness detunes
+    the mode once the gap closes).  Its linear response is infinite there, and the sweep would
+    fail on a NaN.  (An undamped mode that moves a slider is left alone: friction holds it,
+    tests/test_extremes_systems.py.)  Models of more than ``max_dofs`` DOFs are not checked (their
+    dense eigensolve would cost more than it saves)."""
     import scipy.linalg as sla
 
     n = structure.num_dofs
     if n > max_dofs:
         return
     dense = lambda A: A.toarray() if sp.issparse(A) else np.asarray(A)  # noqa: E731
-    w2, Phi = sla.eigh(dense(structure.K_lin), dense(structure.M))
+    w2, Phi = sla.eigh(dense(structure.K_rest), dense(structure.M))
     f = structure.fc - 1j * structure.fs
     s = scene.solver
-    rows = [g.gap[np.flatnonzero(g.pairs.dissipative.ravel())] for g in structure.contacts]
+    rows = [g.gap[np.flatnonzero(g.pairs.dissipative.ravel()
+                                 | (np.asarray(g.pairs.rest_stiffness).ravel() != np.asarray(g.pairs.stiffness).ravel()))]
+            for g in structure.contacts]
     G = sp.vstack(rows).toarray() if rows and sum(r.shape[0] for r in rows) else np.zeros((0, n))
     D = dense(structure.D)
     for k in np.flatnonzero((w2 > 0) & (np.sqrt(np.abs(w2)) >= s.omega_min) & (np.sqrt(np.abs(w2)) <= s.omega_max)):

@@ -219,6 +219,43 @@ def test_undamped_forced_mode_that_friction_cannot_hold_is_refused(tmp_path):
     check_forced_resonances(load_scene(p), create_structure(load_scene(p)))
 
 
+@pytest.mark.parametrize("omega_range", [[2.0, 2.5], [0.8, 1.2]])
+def test_undamped_mode_with_an_open_unilateral_spring_is_not_refused(tmp_path, omega_range):
+    """m = k = 1 undamped and forced, with a unilateral spring k = 4 open at rest (gap 0.5).  Small
+    vibrations about rest resonate at 1 rad/s, and that mode moves the spring's component, which
+    engages once the gap closes and detunes it: bounded.  The engaged sqrt(5) = 2.236 rad/s is no
+    mode at rest.  The check took the spring engaged (K_lin) and refused [2.0, 2.5] (issue 50, item 3);
+    it takes the structure at rest (K_rest) and refuses neither range."""
+    from jointfem.app import check_forced_resonances
+    from jointfem.scene import create_structure
+
+    p = tmp_path / "gap.toml"
+    p.write_text(f"""kind = "lumped"
+[solver]
+omega_range = {omega_range}
+harmonics = 3
+samples = 64
+[[mass]]
+name = "m"
+m = 1.0
+dofs = ["x"]
+[[spring]]
+between = ["m.x", "ground"]
+k = 1.0
+[[unilateral_spring]]
+between = ["m.x", "ground"]
+k = 4.0
+gap = 0.5
+[[force]]
+dof = "m.x"
+amplitude = 0.05
+[output]
+dofs = ["m.x"]
+""")
+    scene = load_scene(p)
+    check_forced_resonances(scene, create_structure(scene))
+
+
 def test_jenkins_between_names_dofs_as_a_spring_does(tmp_path):
     """`between = ["m.x", "ground"]` (DOF names, as springs take them) is the same element as
     `between = ["m", "ground"]` with `tangential = ["x"]`: the same stuck stiffness and the same
