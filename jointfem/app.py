@@ -23,7 +23,7 @@ import scipy.sparse as sp
 
 from .analysis.frf import Resume, SweepIncomplete, SweepOptions, compute_frf, create_problem
 from .continuation.arclength import ContinuationOptions, NewtonOptions
-from .defaults import default_samples
+from .defaults import COMPARE_METHODS, default_samples
 from .harmonics import Harmonics
 from .models.structure import Structure
 from .results import FrequencyResponse, OutputError, atomic_write, load_branch
@@ -700,7 +700,35 @@ def write_frf(solution: SceneSolution, scene: Scene, out: Path, *, method: str, 
     return summary
 
 
-def compare_scene(scene: Scene, methods: str, defaults: RomOptions, *, out: Path, output: str | None = None,
+def applicable_methods(specs: list, structure: Structure, *, given: bool) -> tuple[list, str]:
+    """compare's methods for ``structure``: all of ``specs`` where the user ``given`` them (a method
+    the model cannot take is then refused by name), else the default list less the methods that
+    reduce each substructure where the model defines none (a lumped or matrices model), with a
+    sentence saying so ("" where none was left out)."""
+    from .rom.reductors import MODAL, SUBSTRUCTURED
+
+    if given:
+        return specs, ""
+    notes = []
+    out = [s for s in specs if s.method in SUBSTRUCTURED] if structure.substructure is None else []
+    if out:
+        specs = [s for s in specs if s not in out]
+        notes.append(f"Left out of the default methods: {', '.join(s.method for s in out)}, which reduce each "
+                     f"substructure (the model, {structure.info.get('kind', '?')}, defines none).")
+    n = structure.num_dofs
+    few = [s for s in specs if s.method in MODAL and s.options.modes + s.options.tvd > n]
+    if few:
+        def fit(o: RomOptions) -> RomOptions:
+            modes = min(o.modes, n)
+            return dataclasses.replace(o, modes=modes, tvd=min(o.tvd, n - modes))
+
+        specs = [dataclasses.replace(s, options=fit(s.options)) if s in few else s for s in specs]
+        notes.append(f"The default methods' modes and TVDs are at most the model's {n} DOF{'s' if n != 1 else ''} in all "
+                     f"({', '.join(s.label for s in specs if s.method in MODAL)}).")
+    return specs, " ".join(notes)
+
+
+def compare_scene(scene: Scene, methods: str | None, defaults: RomOptions, *, out: Path, output: str | None = None,
                   reference: str = "full", progress=None, stability: str = "auto") -> str:
     """Every ROM of ``methods`` (comma-separated name[:modes[:tvd]]) against the reference on one
     scene: writes compare.csv, compare.md, compare_frf.png and compare_pareto.png into ``out``, and
@@ -709,12 +737,13 @@ def compare_scene(scene: Scene, methods: str, defaults: RomOptions, *, out: Path
     from .plots import plot_compare
     from .results import atomic_write_text, write_table
 
-    specs = [parse_method(m, defaults) for m in methods.split(",") if m.strip()]
+    specs = [parse_method(m, defaults) for m in (methods or COMPARE_METHODS).split(",") if m.strip()]
     if scene.solver.harmonics_auto:
         raise SceneError(scene.path, "solver.harmonics", "auto", "compare measures every method at one H: give "
                          "harmonics a number, or --harmonics (jointfem frf chooses H with \"auto\")")
     check_solvable(scene)
     structure = create_structure(scene)
+    specs, left_out = applicable_methods(specs, structure, given=methods is not None)
     output = output or next(iter(structure.outputs), None)
     if output not in structure.outputs:
         raise SceneError(scene.path, "--output", output, f"not an output of the scene ({', '.join(structure.outputs)})")
@@ -725,7 +754,7 @@ def compare_scene(scene: Scene, methods: str, defaults: RomOptions, *, out: Path
     md = (f"# {scene.name}: ROMs against {'full order' if reference == 'full' else 'the exact condensation'}"
           f"\n\nScene {scene.path}, output {output}, "
           f"H = {scene.solver.harmonics}, N = {scene.solver.samples}, full size {structure.num_dofs}.\n\n"
-          + to_markdown(results))
+          + (f"{left_out}\n\n" if left_out else "") + to_markdown(results))
     atomic_write_text(out / "compare.md", md)
     plot_compare(results, output, out / "compare_frf.png", out / "compare_pareto.png", title=scene.name)
     return md
@@ -905,7 +934,7 @@ def write_nma(solution: NmaSolution, scene: Scene, out: Path, *, method: str, ro
     return summary
 
 
-def compare_nma_scene(scene: Scene, methods: str, defaults: RomOptions, *, out: Path, reference: str = "full",
+def compare_nma_scene(scene: Scene, methods: str | None, defaults: RomOptions, *, out: Path, reference: str = "full",
                       progress=None) -> str:
     """``compare --analysis nma``: every method's backbone against the reference's (full order, or
     a method spec), errors in omega and zeta at amplitudes spread over the [nma] range; writes
@@ -916,9 +945,10 @@ def compare_nma_scene(scene: Scene, methods: str, defaults: RomOptions, *, out: 
     from .results import atomic_write_text, write_table
 
     opts = nma_options(scene)
-    specs = [parse_method(m, defaults) for m in methods.split(",") if m.strip()]
+    specs = [parse_method(m, defaults) for m in (methods or COMPARE_METHODS).split(",") if m.strip()]
     check_solvable(scene)
     structure = create_structure(scene)
+    specs, left_out = applicable_methods(specs, structure, given=methods is not None)
     check_nma(scene, structure, opts)
     results = compare_backbones(structure, specs, opts, reference=reference, progress=progress)
     rows = [r.row() for r in results]
@@ -930,7 +960,7 @@ def compare_nma_scene(scene: Scene, methods: str, defaults: RomOptions, *, out: 
              f"Scene {scene.path}, amplitude {opts.amplitude_start:g} to {opts.amplitude_end:g} m at "
              f"{opts.output or next(iter(structure.outputs))}, H = {opts.harmonics.H}, N = {opts.harmonics.N}, "
              f"self-excitation {opts.excitation}; errors are the largest over the amplitudes at which both were "
-             f"solved exactly.", "", head, "|" + "---|" * 9]
+             f"solved exactly.", "", *((left_out, "") if left_out else ()), head, "|" + "---|" * 9]
     for r in rows:
         size = f"{r['size_min']}" if r["size_min"] == r["size_max"] else f"{r['size_min']}-{r['size_max']}"
         lines.append(f"| {r['method']} | {size} | {r['status']} | {r['points']} | {r['offline_s']:.2f} | "

@@ -357,8 +357,9 @@ def build_parser() -> argparse.ArgumentParser:
     pp.set_defaults(func=cmd_plot)
     c = sub.add_parser("compare", help="every ROM against full order: sizes, times, errors (CSV, Markdown, PNG)")
     c.add_argument("scene", help="scene file (TOML)")
-    c.add_argument("--methods", default=defaults.COMPARE_METHODS,
-                   help=f"comma-separated name[:modes[:tvd[:kind]]] (default {defaults.COMPARE_METHODS})")
+    c.add_argument("--methods", default=None,
+                   help=f"comma-separated name[:modes[:tvd[:kind]]] (default {defaults.COMPARE_METHODS}, less the "
+                        f"substructure methods on a model that defines no substructures)")
     c.add_argument("--modes", type=int, default=defaults.ROM_MODES,
                    help=f"default modes for methods given without ({defaults.ROM_MODES})")
     c.add_argument("--tvd", type=int, default=defaults.ROM_TVD,

@@ -506,3 +506,23 @@ def test_compare_works_on_a_model_smaller_than_nine_dofs(tmp_path, capsys):
     assert "| penalty:1 |" in md and "\"over stable points\"" in md and "| f1 |" in md and "f2" not in md
     row = next(ln for ln in md.splitlines() if ln.startswith("| penalty:1 |")).split("|")
     assert abs(float(row[7])) < 1e-6  # peak amplitude error, %: the same model
+
+
+def test_compare_with_the_default_methods_runs_on_a_lumped_model(tmp_path, capsys):
+    """Issue 50, item 10: `jointfem compare demos/sdof_jenkins.toml`, as a new user tries it first,
+    stopped at "cb: the model (lumped) defines no substructures" (and then at tvd's 20 modes of a
+    1-DOF model).  The default list now leaves out the methods of substructures where the model
+    has none and takes at most the model's DOFs in modes and TVDs, and compare.md says both; a
+    method the user names is still refused by name."""
+    from jointfem import cli
+
+    scene = str(ROOT / "demos" / "sdof_jenkins.toml")
+    out = tmp_path / "c"
+    assert cli.main(["compare", scene, "--out", str(out), "--harmonics", "3", "--samples", "64", "--quiet"]) == 0, \
+        capsys.readouterr().err
+    md = (out / "compare.md").read_text()
+    assert "Left out of the default methods: cb, rubin, macneal, dcb, cc" in md
+    rows = [ln.split("|")[1].strip() for ln in md.splitlines() if ln.startswith("| ") and "---" not in ln]
+    assert rows[:4] == ["method", "full", "tvd:1", "penalty:1"]
+    assert cli.main(["compare", scene, "--methods", "cb", "--out", str(tmp_path / "cb"), "--quiet"]) == 2
+    assert "cb: the model (lumped) defines no substructures" in capsys.readouterr().err

@@ -15,6 +15,7 @@ REDUCTORS = {
 }
 METHODS = ("full", *REDUCTORS)  # "full": no reduction
 MODAL = ("penalty", "tvd")  # the reductors whose basis starts from the stuck structure's modes
+SUBSTRUCTURED = ("cb", "rubin", "macneal", "dcb", "cc")  # the reductors of each substructure (rom.cms)
 
 
 def build_rom(structure: Structure, method: str, options: RomOptions = RomOptions()) -> Reduction:
