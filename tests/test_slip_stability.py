@@ -1,0 +1,151 @@
+"""Hill's method against an event-driven monodromy matrix on Jenkins oscillators with slip
+(issue 46, item 4; docs/benchmarks_slip_stability.md, benchmarks/slip_stability.py).
+
+The reference (tests/reference_monodromy.py) is checked first: its monodromy matrix against
+central differences of its period map, its orbit against jointfem's HBM solution, and, fully
+stuck, against the closed form of the stuck linear system.  Hill's leading exponent (jointfem,
+H = 31, N = 2048) is then recorded against the monodromy's only where they agree; where they do
+not, the tests are strict xfails quoting the measured numbers, so that they fail once Hill's
+method is fixed (and the marker must go).  The cause is measured in the benchmark: the AFT's
+periodic Jacobian replaces the slider's memory weight e^(-s tau) by 1; the memory-weighted Hill
+problem on the reference orbit gives the monodromy's exponent (last test).
+"""
+from __future__ import annotations
+
+import sys
+from functools import lru_cache
+
+import numpy as np
+import pytest
+
+from conftest import ROOT
+
+sys.path.insert(0, str(ROOT / "benchmarks"))
+import reference_monodromy as rm  # noqa: E402
+import slip_stability as ss  # noqa: E402
+
+
+@lru_cache(maxsize=None)
+def point(kind: str, c: float, omega: float, F: float):
+    """(Hill's leading exponent, reference orbit, U, harmonics) at the benchmark's (H2, N2) = (31, 2048)."""
+    _, U, h, s, _ = ss.hbm_point(kind, F, omega, c, ss.H2, ss.N2)
+    return s, ss.reference_orbit(kind, F, omega, c, U, h), U, h
+
+
+def rel(kind, c, omega, F) -> float:
+    s, orbit, _, _ = point(kind, c, omega, F)
+    mono = rm.leading_exponent(orbit)
+    return (s.real - mono.real) / abs(mono.real)
+
+
+@pytest.mark.parametrize("kind,c,omega,F", [("sdof", 0.02, 1.4, 0.599), ("2-DOF", 0.02, 0.9, 1.853)])
+def test_monodromy_is_the_derivative_of_the_period_map(kind, c, omega, F):
+    """At 40 % (sdof) and 60 % (2-DOF) slip.  The shooting orbit is periodic to 1e-11 (Newton's
+    stop; measured 5e-13, 6e-12) and is jointfem's H = 31 solution to 1e-5 of max |x| (measured
+    1.8e-6, 2.3e-6: the HBM's truncation; an error of the reference's equations would be of order
+    one).  Its monodromy matrix (variational matrices and saltation matrices) equals central
+    differences of the period map (step 1e-6, events located afresh) to 1e-6 of max |Phi|
+    (measured 1.7e-9, 2.2e-9; the central difference's own error is about 1e-10).  The slider's
+    erased memory gives exactly one zero multiplier (below 1e-8 of the largest: ``floquet``
+    asserts it), and the exponents do not depend on the start time: from the middle of the
+    other stick interval they are the same to 1e-9 1/s."""
+    _, orbit, U, h = point(kind, c, omega, F)
+    assert orbit.residual <= rm.PERIODIC_TOL
+    x_ref, _ = rm.sample_orbit(orbit, h.N)
+    x_hbm = h.to_time(U.reshape(h.num_hc, -1))
+    assert np.abs(x_ref - x_hbm).max() <= 1e-5 * np.abs(x_ref).max()
+    fd = rm.flow_map_fd(orbit, eps=1e-6)
+    assert np.abs(fd - orbit.Phi).max() <= 1e-6 * np.abs(orbit.Phi).max()
+    expo, dropped = rm.floquet(orbit)
+    assert expo.size == 2 * orbit.system.n and dropped.size == 1 and abs(dropped[0]) < 1e-8
+    # the other stick interval: between the slip->stick event not followed by t0 and the next slip
+    ev = orbit.events
+    k = next(i for i, e in enumerate(ev) if e.after == 0)
+    t1 = 0.5 * (ev[k].t + ev[k + 1].t)
+    flow = rm.Flow(orbit.system, omega)
+    y1 = flow.run(orbit.t0, orbit.y0, t1 - orbit.t0).y
+    other = rm.periodic_orbit(orbit.system, omega, t1, y1)
+    key = lambda z: (round(z.real, 8), round(z.imag, 8))  # noqa: E731
+    np.testing.assert_allclose(sorted(rm.floquet(other)[0], key=key), sorted(expo, key=key), atol=1e-9)
+
+
+@pytest.mark.parametrize("kind,c,omega,F", [("sdof", 0.02, 1.4, 0.02), ("sdof", 0.05, 1.4, 0.05),
+                                            ("2-DOF", 0.02, 0.9, 0.2)])
+def test_stuck_monodromy_is_the_linear_closed_form(kind, c, omega, F):
+    """Fully stuck, the monodromy's physical exponents are those of the stuck linear system
+    M s^2 + D s + (K + kt G^T G) = 0 folded into the strip: -c/2 (m = 1; the 2-DOF's dampers are
+    mass-proportional) ± i the damped frequencies, to 1e-9 (the exact flow: measured 6e-17 in the
+    real parts).  The
+    slider's direction gives the multiplier 1 (a neighbouring orbit with another slider
+    position), dropped.  Hill gives the same real part (measured 3e-15 apart, 1e-9 allowed)."""
+    s, orbit, _, _ = point(kind, c, omega, F)
+    sy = orbit.system
+    assert not orbit.events
+    expo, dropped = rm.floquet(orbit)
+    np.testing.assert_array_equal(dropped, [1.0])
+    Ks = sy.K + sy.kt[0] * np.outer(sy.Gt[0], sy.Gt[0])
+    n = sy.n
+    lam = np.linalg.eigvals(np.block([[np.zeros((n, n)), np.eye(n)],
+                                      [-np.linalg.solve(sy.M, Ks), -np.linalg.solve(sy.M, sy.D)]]))
+    folded = lambda z: np.sort_complex(z.real + 1j * (np.mod(z.imag + omega / 2, omega) - omega / 2))  # noqa: E731
+    np.testing.assert_allclose(folded(expo), folded(lam), atol=1e-9)
+    np.testing.assert_allclose(expo.real, -c / 2, atol=1e-9)
+    assert abs(s.real + c / 2) < 1e-9
+
+
+@pytest.mark.parametrize("kind,c,omega,F,measured", [
+    ("sdof", 0.02, 1.4, 0.02, 0.0),     # stuck
+    ("sdof", 0.02, 1.4, 0.068, 0.008),  # 10 % slip: -0.01689 against -0.01703
+    ("sdof", 0.02, 1.4, 0.219, -0.023),  # 25 % slip: -0.08129 against -0.07950
+    ("sdof", 0.02, 1.0, 2.0, 0.0001),   # 90 % slip at the slipped resonance: -0.01005 both
+    ("2-DOF", 0.02, 0.62, 3.0, -0.001),  # 93 % slip at the slipped system's first resonance
+])
+def test_hill_agrees_with_the_monodromy_where_it_does(kind, c, omega, F, measured):
+    """The points of docs/benchmarks_slip_stability.md where Hill's leading real part is within 5 %
+    of the monodromy's (the relative difference ``measured``, recorded within 1 %, is what a
+    change of either method would move).  Elsewhere they do not agree: the xfails below."""
+    r = rel(kind, c, omega, F)
+    assert abs(r) <= 0.05
+    assert abs(r - measured) <= 0.01
+
+
+@pytest.mark.xfail(strict=True, reason=(
+    "Hill's method with the AFT's periodic Jacobian neglects the slider's memory weight e^(-s tau): "
+    "measured Hill -0.19125 +- 0.1758i against the monodromy's -0.25747 +- 0.2024i 1/s (+25.7 %) on the "
+    "sdof at omega = 1.4, F = 0.599, 40 % slip (docs/benchmarks_slip_stability.md)"))
+def test_hill_decay_rate_at_40_percent_slip():
+    assert abs(rel("sdof", 0.02, 1.4, 0.599)) <= 0.05
+
+
+@pytest.mark.xfail(strict=True, reason=(
+    "the periodic AFT Jacobian maps a constant gap perturbation to no force, so Hill's spectrum holds "
+    "the slider-free mode -c/2 +- i sqrt(k/m - c^2/4), inside the strip above omega = 2: measured Hill "
+    "-0.01000 +- 0.9999i against the monodromy's -0.20987 +- 1.0528i 1/s (+95 %) on the sdof at "
+    "omega = 2.5, F = 5, 24 % slip (docs/benchmarks_slip_stability.md)"))
+def test_hill_decay_rate_above_twice_the_slipped_frequency():
+    assert abs(rel("sdof", 0.02, 2.5, 5.0)) <= 0.05
+
+
+@pytest.mark.xfail(strict=True, reason=(
+    "Hill's method with the AFT's periodic Jacobian neglects the slider's memory weight e^(-s tau): "
+    "measured Hill -0.06315 +- 0.2556i against the monodromy's -0.05362 +- 0.2741i 1/s (-17.8 %) on the "
+    "2-DOF at omega = 0.9, F = 1.853, 60 % slip (docs/benchmarks_slip_stability.md)"))
+def test_hill_decay_rate_on_the_two_masses_at_60_percent_slip():
+    assert abs(rel("2-DOF", 0.02, 0.9, 1.853)) <= 0.05
+
+
+@pytest.mark.parametrize("kind,c,omega,F", [("sdof", 0.02, 1.4, 0.599), ("sdof", 0.02, 2.5, 5.0)])
+def test_memory_weighted_hill_gives_the_monodromy_exponent(kind, c, omega, F):
+    """The cause of the xfails above.  Hill's problem rebuilt on the reference orbit (H = 31, 4096
+    samples) with the stuck force's memory term weighted by e^(-s tau) (tau the time since the stick
+    onset), solved by Newton from jointfem's Hill exponent, lands on the monodromy's exponent; with
+    the weights set to 1 it gives jointfem's Hill exponent back.  Both to 1 % of the real part
+    (measured 0.02 % and 0.04 % with the weights, 0.02 % and 5e-13 without; at most 0.3 % and
+    1.0 % over the benchmark's 20 slipping points: the first-order quadrature error of the
+    stick/slip switches, jointfem sampling 2048 points a period and this 4096)."""
+    s, orbit, _, _ = point(kind, c, omega, F)
+    mono = rm.leading_exponent(orbit)
+    on = ss.memory_hill(orbit, ss.H2, ss.NMEM, s, memory=True)
+    off = ss.memory_hill(orbit, ss.H2, ss.NMEM, s, memory=False)
+    assert abs(on.real - mono.real) <= 0.01 * abs(mono.real), (on, mono)
+    assert abs(off.real - s.real) <= 0.01 * abs(s.real), (off, s)
