@@ -423,7 +423,7 @@ def load_force_resume(folder: Path, scene: Scene, method: str, rom_options: RomO
 # (frf, nma, force, compare, modes) first removes whatever any command wrote there, then writes its
 # own; `plot` and `export` add to the run's folder.  What a run removes that is not its own (another
 # command's files, an export/ folder) it names in one warning.  Files jointfem does not write are
-# left alone, and so is an export/ folder holding one (docs/scenes.md, "Output folders").
+# left alone, and so is an export/ folder holding one (README.md, "Command line").
 WRITES = {
     "frf": ("frf.csv", "branch.npz", "summary.json", "shape.npz", "frf.png"),
     "nma": ("backbone.csv", "branch.npz", "summary.json", "shape.npz", "backbone.png", "frf_synthesized.png"),

@@ -6,8 +6,8 @@ At a chosen branch point:
   cells with the displacement harmonics at every node as vector fields, ``u_0`` (the mean),
   ``u_<k>_cos`` and ``u_<k>_sin`` for k = 1..H (m), and the first harmonic's amplitude ``|u_1|``
   (m).  A ROM's coordinates are expanded to the nodes through its basis.  ParaView's "Warp By
-  Vector" on ``u_1_cos`` draws the deformed body; dolfinx's users open the XDMF (its data inline
-  as XML: no HDF5 library needed);
+  Vector" on ``u_1_cos`` draws the deformed body.  The XDMF holds its data inline as XML (one
+  file, no HDF5 beside it) and opens in ParaView and meshio;
 * ``pairs_<i>.vtu`` (any model whose pairs have positions): every contact pair as a point with its
   dissipated energy per cycle (J), tangential amplitude (m), peak normal force (N) and the share of
   the period it spends stuck, slipping and separated.
