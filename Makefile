@@ -14,6 +14,11 @@ demo: setup
 test: setup
 	$(PY) -m pytest -q tests
 
+# the suite without its slow tests (those marked by hand, and those over tests/conftest.py SLOW_S
+# seconds in tests/durations.json, tools/record_durations.py), for a developer's quick answer
+test-fast: setup
+	$(PY) -m pytest -q -m "not slow" tests
+
 # issue 51: the precision-sensitive tests under other CPU families' OpenBLAS kernels and one BLAS
 # thread, those this CPU can run (tools/test_portability.sh; --all for the whole suite). Not part of
 # `make test`: about 15 minutes per setting on 2 cores.

@@ -34,6 +34,23 @@ if os.environ.get("JOINTFEM_TEST_PERTURB_K"):
 
 ROOT = Path(__file__).resolve().parents[1]  # the repository: demos/ and the scenes are under it
 
+# `make test-fast` (pytest -m "not slow"): every test whose recorded duration (tests/durations.json,
+# tools/record_durations.py from a whole-suite run) is above SLOW_S seconds is marked slow, beside
+# the tests marked by hand.  A test not in the record counts as fast until the record is redone.
+SLOW_S = 4.0
+
+
+def pytest_collection_modifyitems(config, items):
+    import json
+
+    import pytest
+
+    record = Path(__file__).with_name("durations.json")
+    durations = json.loads(record.read_text()) if record.is_file() else {}
+    for item in items:
+        if durations.get(item.nodeid, 0.0) > SLOW_S:
+            item.add_marker(pytest.mark.slow)
+
 
 def sdof(F, *, c=0.02, N0=1.0):
     """The SDOF Jenkins oscillator: m = k = kt = mu = 1, one slider to ground with slip force
