@@ -37,7 +37,7 @@ ROOT = Path(__file__).resolve().parents[1]  # the repository: demos/ and the sce
 # `make test-fast` (pytest -m "not slow"): every test whose recorded duration (tests/durations.json,
 # tools/record_durations.py from a whole-suite run) is above SLOW_S seconds is marked slow, beside
 # the tests marked by hand.  A test not in the record counts as fast until the record is redone.
-SLOW_S = 4.0
+SLOW_S = 2.5
 
 
 def pytest_collection_modifyitems(config, items):
