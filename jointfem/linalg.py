@@ -187,6 +187,51 @@ class LinAlgError(RuntimeError):
     """An offline solve failed (singular matrix, unconverged eigenvalues)."""
 
 
+# BLAS's threads while a branch is followed.  Measured (benchmarks/blas_threads.py, one process, 2
+# cores, 2026-12-07): the lap2d penalty ROM's sweep (140-238 unknowns, dense) took 2.5 times as long
+# with OpenBLAS at 2 threads as at 1 (78-84 s against 31-33 s), and the last bits its threads change
+# sent it down another path (1014 points against 1064); the beam demo at full order (1320 unknowns)
+# was 0.96 as long with 2 and the same to the bit.  A branch's points must not depend on the
+# machine's core count (OpenBLAS starts one thread a core), so sweeps run BLAS on one thread unless
+# JOINTFEM_BLAS_THREADS asks for more (then the points are the same only at that count).
+BLAS_THREADS_ENV = "JOINTFEM_BLAS_THREADS"
+
+
+def sweep_blas_threads() -> int:
+    """The BLAS thread count of a sweep: JOINTFEM_BLAS_THREADS, 1 by default."""
+    text = os.environ.get(BLAS_THREADS_ENV, "").strip()
+    if not text:
+        return 1
+    try:
+        n = int(text)
+    except ValueError:
+        n = 0
+    if n < 1:
+        raise LinAlgError(f"environment variable {BLAS_THREADS_ENV}={text!r}: give a whole number of threads >= 1")
+    return n
+
+
+@contextlib.contextmanager
+def sweep_blas():
+    """BLAS (OpenBLAS, MKL, ... through threadpoolctl) at sweep_blas_threads() threads within."""
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(limits=sweep_blas_threads(), user_api="blas"):
+        yield
+
+
+def with_sweep_blas(fn):
+    """``fn`` run under sweep_blas (the analyses' entry points: a branch's points the same on any machine)."""
+    import functools
+
+    @functools.wraps(fn)
+    def run(*args, **kwargs):
+        with sweep_blas():
+            return fn(*args, **kwargs)
+
+    return run
+
+
 def eigen(K, M, num: int, *, what: str = "model", sigma: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
     """The ``num`` lowest eigenpairs of K phi = w^2 M phi, mass-normalised.
 

@@ -6,8 +6,7 @@ so a last-bit difference in one residual can send two runs down different paths:
 joint at 5 N once took 100 s alone and over 15 minutes inside the suite.  These tests pin the
 inputs that could differ: the work done before in the same process (a continuum built by gmsh and
 dolfinx with PETSc and MPI initialised, a sweep with Hill's stability, the numba kernels' thread
-pools started): bit for bit; and the BLAS and numba thread counts (1 and 2, in fresh processes):
-to round-off, on the same path.  The case is a Jenkins chain swept across its stick-slip kinks
+pools started), and the BLAS and numba thread counts (1 and 2, in fresh processes): bit for bit.  The case is a Jenkins chain swept across its stick-slip kinks
 (8 masses, H = 5, N = 128).
 """
 from __future__ import annotations
@@ -65,20 +64,45 @@ def test_a_sweep_is_the_same_after_other_work_in_the_process():
 
 
 def test_a_sweep_is_the_same_with_one_and_two_threads(tmp_path):
-    """In fresh processes with OpenBLAS and numba at one and two threads: the same path (the same
-    points, the same count) and the same numbers to round-off.  Not bit for bit: OpenBLAS's threads
-    change the last bits (measured on this chain: 4.4e-16 in omega and 3.9e-15 of max |U| with 2
-    threads against 1, whatever numba's count, which changes nothing: each numba thread evaluates
-    whole pairs); 1e-12 is allowed, a thousand times that and far below any path's difference."""
+    """In fresh processes with OpenBLAS and numba at one and two threads: bit for bit.  OpenBLAS's
+    threads change the last bits (measured on this chain before sweeps ran BLAS on one thread:
+    4.4e-16 in omega and 3.9e-15 of max |U| with 2 against 1; on the lap2d penalty ROM another
+    path, 1014 points against 1064, benchmarks/blas_threads.py); numba's count changes nothing
+    (each of its threads evaluates whole pairs).  A sweep now runs BLAS on one thread whatever
+    OPENBLAS_NUM_THREADS says (linalg.sweep_blas)."""
     out = {}
     for n in ("1", "2"):
         env = dict(os.environ, OPENBLAS_NUM_THREADS=n, OMP_NUM_THREADS=n, NUMBA_NUM_THREADS=n)
+        env.pop("JOINTFEM_BLAS_THREADS", None)
         r = subprocess.run([sys.executable, "-c", SCRIPT.format(tests=str(ROOT / "tests"), out=str(tmp_path / n))],
                            env=env, capture_output=True, text=True, cwd=tmp_path)
         assert r.returncode == 0, r.stderr
         with np.load(tmp_path / f"{n}.npz") as z:
             out[n] = (z["omega"], z["U"])
-    (o1, U1), (o2, U2) = out["1"], out["2"]
-    assert o1.size == o2.size
-    assert np.abs(o1 - o2).max() <= 1e-12 * np.abs(o1).max()
-    assert np.abs(U1 - U2).max() <= 1e-12 * np.abs(U1).max()
+    assert _digest(*out["1"]) == _digest(*out["2"])
+
+
+def test_sweeps_run_blas_on_the_threads_jointfem_blas_threads_gives(monkeypatch):
+    """Inside a sweep BLAS runs on one thread by default and on JOINTFEM_BLAS_THREADS if given
+    (threadpoolctl); outside, as it was; a count that is not a whole number >= 1 is refused by name."""
+    import pytest
+    from threadpoolctl import threadpool_info
+
+    from jointfem.linalg import LinAlgError, sweep_blas
+
+    def blas_threads():
+        return {i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"}
+
+    before = blas_threads()
+    monkeypatch.delenv("JOINTFEM_BLAS_THREADS", raising=False)
+    with sweep_blas():
+        assert blas_threads() == {1}
+    assert blas_threads() == before
+    monkeypatch.setenv("JOINTFEM_BLAS_THREADS", "2")
+    with sweep_blas():
+        assert blas_threads() == {2}
+    for bad in ("0", "two"):
+        monkeypatch.setenv("JOINTFEM_BLAS_THREADS", bad)
+        with pytest.raises(LinAlgError, match=f"JOINTFEM_BLAS_THREADS={bad!r}"):
+            with sweep_blas():
+                pass

@@ -20,6 +20,7 @@ import numpy as np
 
 from ..continuation.arclength import Adaptive, ContinuationError, ContinuationOptions, continue_branch
 from ..harmonics import Harmonics
+from ..linalg import with_sweep_blas
 from ..hbm.problem import Evaluation, Problem, Scales, newton_system
 from ..models.structure import Structure
 from ..results import first_harmonic_amplitude
@@ -132,6 +133,7 @@ class ForceIncomplete(ContinuationError):
         self.response = response
 
 
+@with_sweep_blas
 def compute_force_response(model: Structure | Reduction, omega: float, harmonics: Harmonics, scale_start: float,
                            scale_end: float, continuation: ContinuationOptions = ContinuationOptions(), *,
                            callback=None, resume: dict | None = None) -> ForceResponse:

@@ -11,6 +11,7 @@ import numpy as np
 from ..continuation.arclength import (ContinuationError, ContinuationOptions, ContinuationPoint, NewtonOptions,
                                      continue_branch, solve_adaptive)
 from ..harmonics import Harmonics
+from ..linalg import with_sweep_blas
 from ..hbm.forced import ForcedProblem
 from ..hbm.problem import Problem, newton_system
 from ..models.structure import Structure
@@ -111,6 +112,7 @@ def default_omega_limits(omega_min: float, omega_max: float) -> tuple[float, flo
     return 0.5 * omega_min, 2.0 * omega_max
 
 
+@with_sweep_blas
 def compute_frf(model: Structure | Reduction, options: SweepOptions, *,
                 callback: Callable[[ContinuationPoint], None] | None = None,
                 resume: Resume | None = None) -> FrequencyResponse:

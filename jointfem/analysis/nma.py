@@ -43,7 +43,7 @@ from ..continuation.arclength import (Adaptive, ContinuationError, ContinuationO
 from ..harmonics import Harmonics
 from ..hbm.condensed import CondensedProblem
 from ..hbm.problem import Evaluation, Problem, Scales, newton_system
-from ..linalg import eigen
+from ..linalg import eigen, with_sweep_blas
 from ..models.structure import Structure
 from ..results import first_harmonic_amplitude
 from ..rom.common import Reduction
@@ -436,6 +436,7 @@ class NmaIncomplete(ContinuationError):
         self.backbone = backbone
 
 
+@with_sweep_blas
 def compute_backbone(model: Structure | Reduction, options: NmaOptions, *, callback=None) -> Backbone:
     """The nonlinear mode ``options.mode`` of a model from amplitude_start (the stuck linear mode
     there, refined by Newton) to amplitude_end, by arclength continuation in log10 of the amplitude."""

@@ -1,0 +1,42 @@
+"""What OpenBLAS's threads do to a sweep: its time and its points, 1 thread against 2, measured as
+ratios in one process (issue 50, items 16-17).
+
+    python benchmarks/blas_threads.py demos/beam2d.toml full [demos/lap2d.toml exact ...]
+
+Each scene's sweep runs with BLAS at 1 and at 2 threads (JOINTFEM_BLAS_THREADS, which sweeps hand
+to threadpoolctl; linalg.sweep_blas), twice each, interleaved so that they share the machine's load.
+Recorded in docs/benchmarks_blas_threads.md.  Prints the online times, the ratio, the point
+counts and how far the two thread counts' points are apart (omega and coefficients, relative).
+"""
+import os
+import sys
+
+import numpy as np
+
+from jointfem.app import solve_scene
+from jointfem.scene import load_scene
+
+
+def main():
+    args = sys.argv[1:]
+    for path, method in zip(args[::2], args[1::2]):
+        scene = load_scene(path)
+        times, last = {1: [], 2: []}, {}
+        for rep in range(2):
+            for n in (1, 2):
+                os.environ["JOINTFEM_BLAS_THREADS"] = str(n)
+                frf = solve_scene(scene, method=method).frf
+                times[n].append(frf.info["time_online_s"])
+                last[n] = frf
+                print(f"{path} {method} rep {rep} blas threads {n}: online {frf.info['time_online_s']:.1f} s, "
+                      f"{frf.omega.size} points", flush=True)
+        a, b = last[1], last[2]
+        same = a.omega.size == b.omega.size
+        apart = (f"omega {np.abs(a.omega - b.omega).max() / np.abs(a.omega).max():.1e}, U "
+                 f"{np.abs(a.U - b.U).max() / np.abs(a.U).max():.1e}") if same else "different paths"
+        print(f"{path} {method}: 2 threads / 1 thread online time {np.mean(times[2]) / np.mean(times[1]):.2f}; "
+              f"points {a.omega.size} and {b.omega.size}; apart: {apart}", flush=True)
+
+
+if __name__ == "__main__":
+    main()
