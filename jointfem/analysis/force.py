@@ -20,8 +20,8 @@ import numpy as np
 
 from ..continuation.arclength import Adaptive, ContinuationError, ContinuationOptions, continue_branch
 from ..harmonics import Harmonics
-from ..linalg import with_sweep_blas
 from ..hbm.problem import Evaluation, Problem, Scales, newton_system
+from ..linalg import with_sweep_blas
 from ..models.structure import Structure
 from ..results import first_harmonic_amplitude
 from ..rom.common import Reduction

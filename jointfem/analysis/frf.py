@@ -11,9 +11,9 @@ import numpy as np
 from ..continuation.arclength import (ContinuationError, ContinuationOptions, ContinuationPoint, NewtonOptions,
                                      continue_branch, solve_adaptive)
 from ..harmonics import Harmonics
-from ..linalg import with_sweep_blas
 from ..hbm.forced import ForcedProblem
 from ..hbm.problem import Problem, newton_system
+from ..linalg import with_sweep_blas
 from ..models.structure import Structure
 from ..results import FrequencyResponse
 from ..rom.common import Reduction
