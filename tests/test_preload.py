@@ -117,13 +117,17 @@ def test_stiff_contact_leaves_pairs_open_with_their_gaps(tmp_path):
     wide = pairs.initial_gap > 5e-8
     assert wide.sum() >= 10 and (sep[wide] == 1.0).all()
     assert ((sep[~closed & ~wide] > 0) & (sep[~closed & ~wide] < 1)).all() and (sep[closed] == 0).all()
-    # one omega, three methods: the condensation is full order (measured 3.3e-9), the penalty ROM
+    # one omega, three methods: the condensation is the full model's equations, to its round-off: at
+    # kn = 1e14 its Newton stops at its floor (residual 6e-9 of the force, Problem.tol_floor 1e-8),
+    # and the amplitudes then differ from full order's (stable to 1e-10 here) by -8.0e-7 (OpenBLAS
+    # Prescott kernel), -1.4e-7 (Haswell), +4.7e-7 (SkylakeX; Cooperlake on an AMD EPYC) and 3.3e-9
+    # (a Xeon's Prescott), measured 2026-12-07: bounded at 5e-6, six times the largest; the penalty ROM
     # with 10 modes and 3 TVDs (its open pairs active from the start) within its truncation (4.5e-3)
     h = Harmonics(1, 64)
     amp = {m: solve_at(s if m == "full" else build_rom(s, m, RomOptions(modes=10, tvd=3)), 1800.0, h).amplitudes
            for m in ("full", "exact", "penalty")}
     for out in amp["full"]:
-        assert amp["exact"][out] == pytest.approx(amp["full"][out], rel=1e-7)
+        assert amp["exact"][out] == pytest.approx(amp["full"][out], rel=5e-6)
         assert amp["penalty"][out] == pytest.approx(amp["full"][out], rel=1e-2)
 
 
