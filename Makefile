@@ -11,13 +11,19 @@ demo: setup
 	$(PY) -m jointfem frf demos/beam2d.toml --out results/beam2d
 	$(PY) demos/jointed_beam_levels.py --out results/beam2d_levels
 
+# the suite on up to TEST_JOBS pytest-xdist workers (the machine's cores, at most 4), each with one
+# BLAS thread so that the workers do not oversubscribe the cores (the sweeps already run BLAS on
+# one thread, linalg.sweep_blas); worksteal: a worker that runs out takes tests from the others
+TEST_JOBS ?= $(shell n=$$(nproc 2>/dev/null || echo 1); echo $$(( n < 4 ? n : 4 )))
+PYTEST_PAR := OPENBLAS_NUM_THREADS=1 $(PY) -m pytest -q -n $(TEST_JOBS) --dist worksteal
+
 test: setup
-	$(PY) -m pytest -q tests
+	$(PYTEST_PAR) tests
 
 # the suite without its slow tests (those marked by hand, and those over tests/conftest.py SLOW_S
 # seconds in tests/durations.json, tools/record_durations.py), for a developer's quick answer
 test-fast: setup
-	$(PY) -m pytest -q -m "not slow" tests
+	$(PYTEST_PAR) -m "not slow" tests
 
 # issue 51: the precision-sensitive tests under other CPU families' OpenBLAS kernels and one BLAS
 # thread, those this CPU can run (tools/test_portability.sh; --all for the whole suite). Not part of
