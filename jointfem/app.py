@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 import scipy.sparse as sp
 
+from .analysis.adaptive import HarmonicAdaptation
 from .analysis.frf import Resume, SweepIncomplete, SweepOptions, compute_frf, create_problem
 from .continuation.arclength import ContinuationOptions, NewtonOptions
 from .defaults import COMPARE_METHODS, default_samples
@@ -101,6 +102,8 @@ def sweep_options(scene: Scene, *, stability: str = "auto") -> SweepOptions:
     s = scene.solver
     return SweepOptions(
         stability=STABILITY[stability], omega_limits=s.omega_limits, peak_error=s.peak_error,
+        harmonic_adaptation=(HarmonicAdaptation(target=s.harmonic_target, H_max=s.harmonics_max, tol=s.amplitude_tol)
+                             if s.harmonics_auto else None),
         omega_start=s.omega_start, omega_end=s.omega_end, harmonics=Harmonics(s.harmonics, s.samples),
         continuation=ContinuationOptions(ds0=s.ds0, ds_min=s.ds_min, ds_max=s.ds_max, max_points=s.max_points,
                                          time_limit=s.time_limit,
@@ -349,10 +352,7 @@ def solve_scene(scene: Scene, *, progress: bool = False, method: str = "full",
     model = structure if rom is None else rom
     incomplete = None
     try:
-        if not s.harmonics_auto or resume is not None:
-            frf = compute_frf(model, opts, callback=callback, resume=resume)
-        else:
-            frf = _auto_harmonics(scene, model, opts, callback)
+        frf = compute_frf(model, opts, callback=callback, resume=resume)
     except SweepIncomplete as exc:
         if not keep_incomplete:
             raise
@@ -387,10 +387,13 @@ def _incomplete_run(folder: Path, scene: Scene, method: str, rom_options: RomOpt
             data.get("solver", {}).pop(key, None)
         return data
 
-    mine = {"scene": problem_of(scene.data), "method": method, "harmonics": scene.solver.harmonics,
+    # (harmonics = "auto": H changes along the branch, and what the scene fixes is that it does)
+    mine = {"scene": problem_of(scene.data), "method": method,
+            "harmonics": "auto" if scene.solver.harmonics_auto else scene.solver.harmonics,
             "samples": scene.solver.samples, **same}
     theirs = {"scene": problem_of(summary.get("scene_data")), "method": summary.get("method"),
-              "harmonics": summary.get("harmonics"), "samples": summary.get("samples"),
+              "harmonics": "auto" if "harmonics_adaptive" in summary else summary.get("harmonics"),
+              "samples": summary.get("samples"),
               **{k: summary.get(k) for k in same}}
     if method != "full":
         mine.update(modes=rom_options.modes, tvd=rom_options.tvd, tvd_kind=rom_options.tvd_kind)
@@ -407,9 +410,10 @@ def _incomplete_run(folder: Path, scene: Scene, method: str, rom_options: RomOpt
 def load_resume(folder: Path, scene: Scene, method: str, rom_options: RomOptions) -> Resume:
     """The branch of an incomplete sweep in ``folder``, checked to be this scene's with this method
     (and H, N, ROM options); OutputError with one line otherwise."""
-    _, b = _incomplete_run(folder, scene, method, rom_options, "frf")
+    summary, b = _incomplete_run(folder, scene, method, rom_options, "frf")
     return Resume(omega=b["omega"], U=b["U"], iterations=b["iterations"], residual=b["residual"],
-                  ds_next=float(b["ds_next"][-1]))
+                  ds_next=float(b["ds_next"][-1]),
+                  harmonics=b["harmonics"] if "harmonics_adaptive" in summary else None)
 
 
 def load_force_resume(folder: Path, scene: Scene, method: str, rom_options: RomOptions, omega: float) -> dict:
@@ -609,31 +613,12 @@ def check_output(out: Path) -> None:
         raise OutputError(f"cannot write the results to {out}/: {existing} is not writable")
 
 
-def _auto_harmonics(scene: Scene, model, opts: SweepOptions, callback) -> FrequencyResponse:
-    """harmonics = "auto": sweep at H = 3, 5, ... until every point's harmonic truncation estimate
-    (analysis.convergence) is at most the scene's harmonic_target, or H reaches harmonics_max.  One
-    H for the whole scene; frf.info["harmonics_auto"] lists every attempt."""
-    s = scene.solver
-    attempts = []
-    H = s.harmonics
-    while True:
-        N = s.samples if s.samples_given else default_samples(H)
-        t0 = time.perf_counter()
-        frf = compute_frf(model, dataclasses.replace(opts, harmonics=Harmonics(H, N)), callback=callback)
-        worst = float(frf.info["arrays"]["harmonic_error"].max())
-        attempts.append({"H": H, "N": N, "max_estimate": worst, "points": int(frf.num_points),
-                         "seconds": time.perf_counter() - t0})
-        log.info("harmonics auto: H = %d, largest truncation estimate %.3g (target %.3g)", H, worst,
-                 s.harmonic_target)
-        if worst <= s.harmonic_target or H + 2 > s.harmonics_max:
-            break
-        H += 2
-    frf.info["harmonics_auto"] = {"target": s.harmonic_target, "chosen_H": H, "reached": worst <= s.harmonic_target,
-                                  "per": "scene", "attempts": attempts}
-    if worst > s.harmonic_target:
-        log.warning("harmonics auto: H = %d (harmonics_max) still has a truncation estimate %.3g > target %.3g",
-                    H, worst, s.harmonic_target)
-    return frf
+def _harmonics_label(frf: FrequencyResponse) -> str:
+    """H=5, or H=3-21 for a branch whose H changes along it (harmonics = "auto")."""
+    H = frf.info["arrays"].get("harmonics")
+    if H is None or H.size == 0 or H.min() == H.max():
+        return f"H={frf.harmonics.H}"
+    return f"H={int(H.min())}-{int(H.max())}"
 
 
 def save_shape(structure: Structure, rom: Reduction | None, out: Path) -> None:
@@ -675,7 +660,7 @@ def write_frf(solution: SceneSolution, scene: Scene, out: Path, *, method: str, 
         "model": {"num_dofs": structure.num_dofs, "num_pairs": structure.num_pairs},
         "rom": rom_info,
         "harmonics": frf.harmonics.H, "samples": frf.harmonics.N, "mpi_ranks": mpi_ranks,
-        **({"harmonics_auto": frf.info["harmonics_auto"]} if "harmonics_auto" in frf.info else {}),
+        **({"harmonics_adaptive": frf.info["harmonics_adaptive"]} if "harmonics_adaptive" in frf.info else {}),
         "model_timings_s": structure.info.get("timings", {}),
         "num_unknowns": frf.info["num_unknowns"],
         "omega_start_rad_s": scene.solver.omega_start, "omega_end_rad_s": scene.solver.omega_end,
@@ -690,7 +675,7 @@ def write_frf(solution: SceneSolution, scene: Scene, out: Path, *, method: str, 
     remove_stale(out, "frf")
     summary = save_frf(frf, out, summary=summary)
     save_shape(structure, rom, out)
-    plot_frf(frf, out / "frf.png", title=f"{scene.name} ({method}, H={frf.harmonics.H})")
+    plot_frf(frf, out / "frf.png", title=f"{scene.name} ({method}, {_harmonics_label(frf)})")
     if plots and structure.num_pairs:
         from .viz import plot_folder
 

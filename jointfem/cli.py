@@ -59,7 +59,10 @@ def _tvd_kind_arg(parser) -> None:
 def cmd_frf(args) -> int:
     from . import app, parallel
 
-    scene = app.override_harmonics(app.override(load_scene(args.scene), args.set), args.harmonics, args.samples)
+    auto = args.harmonics == "auto"  # as the scene's harmonics = "auto", with its rules
+    scene = app.override_harmonics(app.override(load_scene(args.scene), args.set + (['solver.harmonics="auto"']
+                                                                                     if auto else [])),
+                                   None if auto else args.harmonics, args.samples)
     out = Path(args.out) if args.out else Path("results") / scene.name
     t0 = time.perf_counter()
     root = parallel.is_root()
@@ -98,6 +101,10 @@ def _what_is_known(summary: dict) -> str:
     """The harmonics solved, the truncation estimate and the stability of a sweep, in one line for
     the terminal: what is known of the answer, beside it and not only in summary.json."""
     parts = [f"H = {summary['harmonics']}, N = {summary['samples']}"]
+    if (ad := summary.get("harmonics_adaptive")) is not None:
+        per = ", ".join(f"{n} at H = {H}" for H, n in ad["points_per_H"].items())
+        parts = [f"H chosen along the branch ({per}; target {ad['target']:g}"
+                 + ("" if ad["reached"] else f", not met within harmonics_max = {ad['H_max']}") + f"), N = {summary['samples']}"]
     he = summary.get("harmonic_error")
     if he is not None:
         parts.append(f"truncation estimate up to {he['max']:.3g}" + (" (not converged in H: see the warning)"
@@ -271,6 +278,15 @@ def _set_arg(p) -> None:
                         "jenkins[0].mu=0.2; the scene is validated again as a whole")
 
 
+def _harmonics_arg(text: str) -> int | str:
+    if text == "auto":
+        return text
+    try:
+        return int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be an integer or auto, not {text!r}") from None
+
+
 def _stability_arg(p) -> None:
     p.add_argument("--stability", choices=("auto", "on", "off"), default="auto",
                    help="Floquet exponents of every point (Hill's method): auto (default) computes them wherever "
@@ -287,7 +303,8 @@ def build_parser() -> argparse.ArgumentParser:
     f = sub.add_parser("frf", help="nonlinear frequency response of a scene")
     f.add_argument("scene", help="scene file (TOML)")
     f.add_argument("--out", help="output folder (default results/<scene name>)")
-    f.add_argument("--harmonics", type=int, help="number of harmonics H (overrides the scene)")
+    f.add_argument("--harmonics", type=_harmonics_arg,
+                   help='number of harmonics H, or "auto" (H chosen along the branch; overrides the scene)')
     f.add_argument("--samples", type=int, help="AFT time samples N >= 2H+1 (overrides the scene)")
     f.add_argument("--method", choices=METHODS, default="full", help="model reduction (default: full order)")
     _rom_args(f)

@@ -49,6 +49,9 @@ class SolverSpec:
     harmonics_auto: bool = False
     harmonic_target: float = 0.05
     harmonics_max: int = 25
+    # harmonics = "auto": the largest change of an output's first-harmonic amplitude or RMS, over the
+    # branch's largest amplitude so far, that a point may show when solved at H + 2 (analysis.adaptive)
+    amplitude_tol: float = 5e-3
     samples_given: bool = True
     # the continuation's own defaults (defined once, in jointfem.continuation.arclength)
     ds0: float = ContinuationOptions.ds0
@@ -225,9 +228,12 @@ def _solver(t: _Table) -> SolverSpec:
         H = t.integer("harmonics", SolverSpec.harmonics, ge=1)
     target = t.number("harmonic_target", SolverSpec.harmonic_target, gt=0)
     H_max = t.integer("harmonics_max", SolverSpec.harmonics_max, ge=1)
-    if not auto and (t.has("harmonic_target") or t.has("harmonics_max")):
-        t.fail("harmonic_target" if t.has("harmonic_target") else "harmonics_max",
-               t.data.get("harmonic_target", t.data.get("harmonics_max")), 'only with harmonics = "auto"')
+    amp_tol = t.number("amplitude_tol", SolverSpec.amplitude_tol, gt=0)
+    for key in ("harmonic_target", "harmonics_max", "amplitude_tol"):
+        if not auto and t.has(key):
+            t.fail(key, t.data[key], 'only with harmonics = "auto"')
+    if auto and amp_tol >= 1:
+        t.fail("amplitude_tol", amp_tol, "must be < 1 (a share of the largest amplitude)")
     if auto and target >= 1:
         t.fail("harmonic_target", target, "must be < 1 (a share of the contact force)")
     if auto and H_max < H:
@@ -253,7 +259,7 @@ def _solver(t: _Table) -> SolverSpec:
         tol=t.number("tol", SolverSpec.tol, gt=0), max_points=t.integer("max_points", SolverSpec.max_points, ge=2),
         kink_tol=t.number("kink_tol", SolverSpec.kink_tol, gt=0),
         time_limit=t.number("time_limit", SolverSpec.time_limit, gt=0), harmonics_auto=auto, harmonic_target=target,
-        harmonics_max=H_max, samples_given=t.has("samples"), aft=t.string("aft", "sampled", choices=AFT_KINDS),
+        harmonics_max=H_max, amplitude_tol=amp_tol, samples_given=t.has("samples"), aft=t.string("aft", "sampled", choices=AFT_KINDS),
         omega_limits=limits, peak_error=t.boolean("peak_error", False))
     if spec.kink_tol > 1e-3:
         t.fail("kink_tol", spec.kink_tol, "must be <= 1e-3 (a residual of 0.1 % of the force)")

@@ -80,36 +80,13 @@ dofs = ["m.x"]
 """
 
 
-def test_auto_harmonics_stops_at_the_first_h_that_meets_the_target(tmp_path):
-    """harmonics = "auto" on the SDOF oscillator at F = 0.5: H grows by 2 from 3 until the largest
-    estimate over the branch is at most the target; the H before it did not meet it."""
-    import json
-
-    from jointfem.app import solve_scene, write_frf
-    from jointfem.rom import RomOptions
-    from jointfem.scene import load_scene
-
-    path = tmp_path / "auto.toml"
-    path.write_text(SCENE.format(solver='harmonics = "auto"\nharmonic_target = 0.03\nsamples = 256'))
-    scene = load_scene(path)
-    sol = solve_scene(scene)
-    auto = sol.frf.info["harmonics_auto"]
-    H = auto["chosen_H"]
-    assert auto["reached"] and sol.frf.harmonics.H == H and H > 3
-    errs = {a["H"]: a["max_estimate"] for a in auto["attempts"]}
-    assert list(errs) == list(range(3, H + 1, 2))
-    assert errs[H] <= 0.03 < errs[H - 2]
-    assert sol.frf.info["arrays"]["harmonic_error"].max() == errs[H]
-    summary = write_frf(sol, scene, tmp_path / "out", method="full", rom_options=RomOptions())
-    on_disk = json.loads((tmp_path / "out" / "summary.json").read_text())
-    assert on_disk["harmonics"] == H and on_disk["harmonics_auto"]["chosen_H"] == H == summary["harmonics"]
-
-
 @pytest.mark.parametrize("solver, key, words", [
     ('harmonics = "many"', "solver.harmonics", "must be an integer"),
     ('harmonics = 5\nharmonic_target = 0.01', "solver.harmonic_target", "only with harmonics"),
     ('harmonics = "auto"\nharmonic_target = 2.0', "solver.harmonic_target", "must be < 1"),
     ('harmonics = "auto"\nharmonics_max = 25\nsamples = 40', "solver.samples", "harmonics_max"),
+    ('harmonics = 5\namplitude_tol = 0.01', "solver.amplitude_tol", "only with harmonics"),
+    ('harmonics = "auto"\namplitude_tol = 1.5', "solver.amplitude_tol", "must be < 1"),
     ('harmonics = 3\npeak_error = 1', "solver.peak_error", "must be true or false"),
 ])
 def test_bad_auto_harmonics_keys_are_refused(tmp_path, solver, key, words):

@@ -17,6 +17,7 @@ from ..linalg import with_sweep_blas
 from ..models.structure import Structure
 from ..results import FrequencyResponse
 from ..rom.common import Reduction
+from .adaptive import HarmonicAdaptation, enough_harmonics, resize, trace
 from .convergence import PEAK_SPAN, TruncationEstimator, top_harmonic_share
 from .peaks import locate_peaks
 from .stability import ExponentTracker, is_stable
@@ -48,6 +49,10 @@ class SweepOptions:
     # TruncationEstimator.peak (info["peak_errors"]); off by default: on the beam at 3 N it costs
     # 30-230 s a peak beside a 8-40 s sweep (docs/benchmarks_truncation.md)
     peak_error: bool = False
+    # H chosen along the branch from harmonics.H (analysis.adaptive; the same N at every H): raised
+    # where a point's truncation estimate passes the target, lowered where it is far below; None:
+    # harmonics.H everywhere
+    harmonic_adaptation: HarmonicAdaptation | None = None
 
 
 class SweepIncomplete(ContinuationError):
@@ -80,6 +85,9 @@ class Resume:
     iterations: np.ndarray
     residual: np.ndarray
     ds_next: float
+    # per point, the H it was solved at (a branch whose H changes along it: U holds every point at
+    # the largest H, the harmonics above a point's own zero); None: one H
+    harmonics: np.ndarray | None = None
 
 
 def resumed_points(problem: Problem, lam: np.ndarray, X: np.ndarray, residual: np.ndarray, record, *,
@@ -134,22 +142,49 @@ def compute_frf(model: Structure | Reduction, options: SweepOptions, *,
 
     # Hill's method needs the Jacobian at the point, which the continuation has just evaluated for
     # the tangent (the problem returns it again from its last evaluation)
-    # (decided once, on the largest system the problem can have: the penalty ROM's grows)
+    # (decided once, on the largest system the problem can have: the penalty ROM's grows, and so
+    # does every problem's where H changes along the branch)
+    adaptation = options.harmonic_adaptation
+    if resume is not None and (adaptation is None) != (resume.harmonics is None):
+        raise ValueError("compute_frf: a branch whose H changes along it resumes as one, and only as one")
+    H_most = h.H if adaptation is None else max(h.H, adaptation.H_max)
     if options.stability is not None:
         stability = options.stability
     else:
         stability = problem.stability_not_by_default is None and (
-            options.stability_auto_unknowns is None or problem.hill_size <= options.stability_auto_unknowns)
-    exponent = ExponentTracker(problem)
+            options.stability_auto_unknowns is None
+            or problem.hill_size * (2 * H_most + 1) // nh <= options.stability_auto_unknowns)
+    problems = {h.H: problem}
+    recorders = {}
+    trackers = []
 
-    def record(U, omega):
-        # (called as the continuation accepts a point: the unknowns now are those it was solved in)
-        ev = problem.evaluate(U, omega, jacobian=stability)
-        rec = replace(problem.record(U, omega, ev), harmonic_error=top_harmonic_share(ev.contact, h),
-                      unknowns=problem.num_unknowns)
-        if stability:
-            rec = replace(rec, stability=exponent(U, omega, ev))
-        return rec
+    def problem_at(H: int) -> Problem:
+        if H not in problems:
+            problems[H] = create_problem(model, Harmonics(H, h.N))
+        return problems[H]
+
+    def recorder(pb: Problem):
+        if id(pb) in recorders:
+            return recorders[id(pb)]
+        hh = pb.harmonics
+        exponent = ExponentTracker(pb)
+        trackers.append(exponent)
+
+        def record(U, omega):
+            # (called as the continuation accepts a point: the unknowns now are those it was solved in)
+            ev = pb.evaluate(U, omega, jacobian=stability)
+            rec = replace(pb.record(U, omega, ev), harmonic_error=top_harmonic_share(ev.contact, hh),
+                          unknowns=pb.num_unknowns, harmonics=hh.H)
+            if adaptation is not None:
+                rec = replace(rec, harmonics_enough=enough_harmonics(ev.contact, hh, adaptation))
+            if stability:
+                rec = replace(rec, stability=exponent(U, omega, ev))
+            return rec
+
+        recorders[id(pb)] = record
+        return record
+
+    record = recorder(problem)
 
     # a frequency response lives at positive omega: a branch that leaves the octave around the
     # window (omega_min / 2 to 2 omega_max) has turned back for good (folds inside it are followed;
@@ -168,24 +203,49 @@ def compute_frf(model: Structure | Reduction, options: SweepOptions, *,
         # unbounded (undamped) resonance or onto another branch, and is refused however short
         cont = replace(cont, max_rel_change=1.0)
     U0, omega0, before, heading = problem.initial_guess(options.omega_start), options.omega_start, [], None
-    if resume is not None:
+    if resume is not None and adaptation is None:
         before, (U0, omega0), heading = resumed_points(problem, resume.omega, resume.U, resume.residual, record,
                                                        iterations=resume.iterations)
         heading = heading, resume.ds_next
     t1 = time.perf_counter()
     steps = {}
     stopped = None
-    try:
-        points = continue_branch(newton_system(problem), U0, omega0, options.omega_end,
-                                 x_scale=scales.x, lam_scale=lam_scale, r_scale=scales.r, options=cont,
-                                 callback=callback, extra=record, adapt=problem.adaptation, stats=steps,
-                                 resume=heading, traced=before)
-    except ContinuationError as exc:
-        if len(before) + len(exc.points) < 2:
-            raise
-        # the branch so far is a result: kept, marked incomplete, and raised with it below
-        points, stopped = exc.points, exc
-    points = before + points
+    adaptive = None
+    if adaptation is not None:
+        earlier = None
+        if resume is not None:  # each point recorded again in the problem of its H
+            earlier = []
+            for i, H_i in enumerate(np.asarray(resume.harmonics, int)):
+                pb = problem_at(int(H_i))
+                x_i = resize(np.asarray(resume.U[i], float), pb.num_coefficients // pb.harmonics.num_hc, int(H_i))
+                if pb.adaptation is not None:
+                    pb.adaptation.restore(pb.adaptation.state_of(x_i))
+                w_i = float(resume.omega[i])
+                earlier.append(ContinuationPoint(x_i, w_i, int(resume.iterations[i]), 0.0, recorder(pb)(x_i, w_i),
+                                                 residual=float(resume.residual[i]), ds_next=resume.ds_next))
+            earlier = (earlier, [int(H_i) for H_i in resume.harmonics])
+        adaptive = trace(problem_at, h.H, adaptation, omega_start=options.omega_start, omega_end=options.omega_end,
+                         x0=U0, options=cont, record_at=recorder, callback=callback, resume=earlier)
+        if adaptive.stopped is not None and len(adaptive.points) < 2:
+            raise adaptive.stopped
+        points, stopped, steps = adaptive.points, adaptive.stopped, adaptive.stats
+        # the branch's points are at its largest H: so are its peaks, layout and result
+        problem = problem_at(adaptive.H_top)
+        h, nh = problem.harmonics, problem.harmonics.num_hc
+        q = problem.num_coefficients // nh
+        scales = problem.scales(options.omega_start, options.omega_end)
+    else:
+        try:
+            points = continue_branch(newton_system(problem), U0, omega0, options.omega_end,
+                                     x_scale=scales.x, lam_scale=lam_scale, r_scale=scales.r, options=cont,
+                                     callback=callback, extra=record, adapt=problem.adaptation, stats=steps,
+                                     resume=heading, traced=before)
+        except ContinuationError as exc:
+            if len(before) + len(exc.points) < 2:
+                raise
+            # the branch so far is a result: kept, marked incomplete, and raised with it below
+            points, stopped = exc.points, exc
+        points = before + points
     records = [p.extra for p in points]
     layout = problem.layout
     omega, X = np.array([p.lam for p in points]), np.array([p.x for p in points])
@@ -231,11 +291,25 @@ def compute_frf(model: Structure | Reduction, options: SweepOptions, *,
         info["time_peak_error_s"] = t_err
     he = np.array([r.harmonic_error for r in records])
     info["arrays"]["harmonic_error"] = he
-    if he.max() > options.harmonic_tol:
+    info["arrays"]["harmonics"] = np.array([r.harmonics for r in records])
+    tol = options.harmonic_tol if adaptation is None else adaptation.target
+    if adaptive is not None:
+        H_of = adaptive.H_of
+        info["harmonics_adaptive"] = {
+            "target": adaptation.target, "H_start": options.harmonics.H, "H_min": adaptation.H_min,
+            "H_max": adaptation.H_max, "H_top": adaptive.H_top, "reached": bool(he.max() <= tol),
+            "points_per_H": {int(H): int((H_of == H).sum()) for H in np.unique(H_of)},
+            "changes": [{"omega_rad_s": w, "from": a, "to": b} for w, a, b in adaptive.changes],
+            "lowering_refused": [{"omega_rad_s": w, "from": a, "to": b, "why": why} for w, a, b, why in adaptive.refused]}
+        # per point: the largest change of an output from H to H + step over the branch's largest
+        # amplitude so far (analysis.adaptive's check; NaN where the estimate did not call for it)
+        info["arrays"]["harmonic_check"] = adaptive.check
+    if he.max() > tol:
         k = int(np.argmax(he))
-        info["harmonic_warning"] = (f"harmonic truncation estimate {he[k]:.3g} > {options.harmonic_tol:g} at omega = "
-                                    f"{points[k].lam:.6g} rad/s ({int((he > options.harmonic_tol).sum())} of "
-                                    f"{he.size} points): more harmonics are needed there (H = {h.H})")
+        at = f"H = {h.H}" if adaptive is None else f"at H = {int(info['arrays']['harmonics'][k])}, harmonics_max"
+        info["harmonic_warning"] = (f"harmonic truncation estimate {he[k]:.3g} > {tol:g} at omega = "
+                                    f"{points[k].lam:.6g} rad/s ({int((he > tol).sum())} of "
+                                    f"{he.size} points): more harmonics are needed there ({at})")
         log.warning(info["harmonic_warning"])
     lead = np.array([np.nan if r.stability is None else r.stability for r in records], dtype=complex)
     re = lead.real
@@ -265,9 +339,9 @@ def compute_frf(model: Structure | Reduction, options: SweepOptions, *,
         info["stability"] = (f"not computed: {problem.hill_size} unknowns > {options.stability_auto_unknowns}, "
                              f"the automatic limit (an eigensolve of twice the unknowns of Hill's problem per "
                              f"point; --stability on computes it)")
-    elif exponent.failures:
-        w_fail, what = exponent.failures[0]
-        info["stability"] = (f"not computed: Hill's eigensolve failed at {len(exponent.failures)} of {omega.size} "
+    elif failures := [f for t in trackers for f in t.failures]:
+        w_fail, what = failures[0]
+        info["stability"] = (f"not computed: Hill's eigensolve failed at {len(failures)} of {omega.size} "
                              f"points (first at omega = {w_fail:.6g} rad/s: {what})")
         log.warning(info["stability"])
     else:

@@ -67,6 +67,9 @@ class PointRecord:
     active: the penalty ROM's active components (num_components,) bool, else None.
     stability, harmonic_error: room for the leading Floquet exponent (the largest real part; complex,
     1/s) and for the harmonic truncation error estimate (None until an analysis computes them).
+    harmonics: the H the point was solved at (set by the analysis; a branch whose H changes along it,
+    analysis.adaptive); harmonics_enough: the smallest H the point's forces predict would do
+    (analysis.adaptive.enough_harmonics).
     """
 
     states: np.ndarray
@@ -76,6 +79,8 @@ class PointRecord:
     unknowns: int = 0
     stability: complex | None = None
     harmonic_error: float | None = None
+    harmonics: int = 0
+    harmonics_enough: int | None = None
 
 
 @dataclass(frozen=True)

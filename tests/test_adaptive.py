@@ -1,0 +1,139 @@
+"""harmonics = "auto": H chosen along the branch (jointfem.analysis.adaptive), against sweeps at a
+fixed H high enough to be converged."""
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from conftest import sdof
+from jointfem.analysis.adaptive import HarmonicAdaptation, resize, share_at
+from jointfem.analysis.convergence import amplitude_and_rms, top_harmonic_share
+from jointfem.analysis.frf import SweepOptions, compute_frf, create_problem
+from jointfem.analysis.peaks import output_signal
+from jointfem.harmonics import Harmonics
+from jointfem.models.lumped import create_lumped
+from jointfem.results import load_branch
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "benchmarks"))
+
+
+def _peak_and_rms(frf, name):
+    pk = frf.info["peaks"][name]
+    h = frf.harmonics
+    rms = max(amplitude_and_rms(output_signal(u, frf.outputs[name], h), h)[1] for u in frf.U)
+    return pk.amplitude, pk.omega, rms
+
+
+def test_resize_and_the_predicted_estimate_agree_with_the_estimate_at_that_h():
+    """A point padded to more harmonics and cut back is the same; the estimate predicted at H from
+    the forces of a point solved at more harmonics is the estimate of the truncated forces, and at
+    its own H it is top_harmonic_share."""
+    x = np.arange(3 * 5, dtype=float)  # 3 signals, H = 2
+    assert np.array_equal(resize(resize(x, 3, 7), 3, 2), x) and resize(x, 3, 7)[x.size:].max() == 0
+    s = create_lumped(sdof(0.5))
+    h = Harmonics(9, 256)
+    pb = create_problem(s, h)
+    frf = compute_frf(s, SweepOptions(1.25, 1.35, h, locate_peaks=False, stability=False))
+    contact = pb.evaluate(frf.U[-1], frf.omega[-1], jacobian=False).contact
+    assert share_at(contact, h, 9) == pytest.approx(top_harmonic_share(contact, h), rel=1e-14)
+    e5, e7 = share_at(contact, h, 5), share_at(contact, h, 7)
+    assert e5 > e7 > share_at(contact, h, 9) > 0 and share_at(contact, h, 2) == 1.0
+
+
+def test_auto_follows_the_branch_at_the_h_each_stretch_needs(tmp_path):
+    """The SDOF Jenkins oscillator at F = 0.5 swept from the stuck flank: the stuck points stay at the
+    starting H = 3 (their contact force is linear: estimate 0), H rises where slip begins, every
+    point meets the target, each is a solution at its own H, and the located peak (first harmonic
+    and the largest RMS over the branch) is within amplitude_tol of the sweep at H = 25 (measured
+    -1.9e-4 and -7.4e-4 of it, 2026-12-07, with 22 points at H = 3 and 27 at H = 5); the H of
+    every point is in branch.npz and summary.json."""
+    from jointfem.app import solve_scene, write_frf
+    from jointfem.rom import RomOptions
+    from jointfem.scene import load_scene
+    from test_convergence import SCENE
+
+    path = tmp_path / "auto.toml"
+    path.write_text(SCENE.format(solver='harmonics = "auto"\nsamples = 256'))
+    scene = load_scene(path)
+    sol = solve_scene(scene)
+    frf = sol.frf
+    H = frf.info["arrays"]["harmonics"]
+    he = frf.info["arrays"]["harmonic_error"]
+    ad = frf.info["harmonics_adaptive"]
+    stuck = (frf.states == 0).all(axis=(1, 2))
+    assert ad["reached"] and he.max() <= 0.05 and frf.info["status"] == "complete"
+    assert H[0] == 3 and (H[stuck & (np.arange(H.size) < np.argmax(~stuck))] == 3).all()
+    assert H.max() > 3 and frf.harmonics.H == H.max() == ad["H_top"]
+    assert sum(ad["points_per_H"].values()) == frf.num_points and ad["changes"]
+    for i in range(0, frf.num_points, 7):  # each point solves its own H's equations
+        pb = create_problem(sol.structure, Harmonics(int(H[i]), 256))
+        x = resize(frf.U[i], 1, int(H[i]))
+        assert np.abs(pb.evaluate(x, frf.omega[i], jacobian=False).R).max() < 1e-8 * 0.5
+        assert np.abs(frf.U[i][x.size:]).max(initial=0.0) == 0.0  # the harmonics above its H are zero
+    ref = compute_frf(sol.structure, SweepOptions(0.5, 2.0, Harmonics(25, 256), stability=False))
+    a, w, rms = _peak_and_rms(frf, "m.x")
+    a_ref, w_ref, rms_ref = _peak_and_rms(ref, "m.x")
+    assert abs(a / a_ref - 1) < scene.solver.amplitude_tol and abs(rms / rms_ref - 1) < scene.solver.amplitude_tol
+    assert abs(w / w_ref - 1) < 1e-3
+    write_frf(sol, scene, tmp_path / "out", method="full", rom_options=RomOptions())
+    on_disk = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert on_disk["harmonics"] == H.max() and on_disk["harmonics_adaptive"]["H_top"] == H.max()
+    assert np.array_equal(load_branch(tmp_path / "out" / "branch.npz")["harmonics"], H)
+
+
+def test_auto_meets_its_amplitude_tolerance_at_a_superharmonic_resonance():
+    """Two masses with a 3:1 superharmonic resonance (benchmarks/truncation.py): at a fixed H = 3 the
+    largest RMS of b over the branch is 3.2e-3 below H = 25's and its peak 1.1e-3 (measured); with
+    amplitude_tol = 1e-3, auto from H = 3 ends within it of H = 25 in both."""
+    from truncation import two_mass
+
+    m = two_mass()
+    h3, h25 = Harmonics(3, 1024), Harmonics(25, 1024)
+    ref = _peak_and_rms(compute_frf(m, SweepOptions(0.60, 0.65, h25, stability=False)), "b.x")
+    low = _peak_and_rms(compute_frf(m, SweepOptions(0.60, 0.65, h3, stability=False)), "b.x")
+    auto = _peak_and_rms(compute_frf(m, SweepOptions(0.60, 0.65, h3, stability=False,
+                                                     harmonic_adaptation=HarmonicAdaptation(tol=1e-3))), "b.x")
+    assert abs(low[2] / ref[2] - 1) > 2e-3 and abs(low[0] / ref[0] - 1) > 1e-3  # the case is not vacuous
+    assert abs(auto[0] / ref[0] - 1) < 1e-3 and abs(auto[2] / ref[2] - 1) < 1e-3
+
+
+def test_an_auto_sweep_stopped_by_its_budget_resumes_to_the_same_branch(tmp_path):
+    """harmonics = "auto" stopped by max_points, resumed with --resume: the same peak and the same
+    largest H as an uninterrupted run (to 1e-8), the record of H per point kept; --harmonics auto on
+    the command line is the scene's harmonics = "auto"."""
+    import subprocess
+
+    from test_convergence import SCENE
+
+    stopped, full = tmp_path / "stopped.toml", tmp_path / "full.toml"
+    stopped.write_text(SCENE.format(solver='harmonics = "auto"\nsamples = 256\nmax_points = 20'))
+    full.write_text(SCENE.format(solver='harmonics = 3\nsamples = 256'))
+    a, b = tmp_path / "a", tmp_path / "b"
+
+    def run(*args):
+        return subprocess.run([sys.executable, "-m", "jointfem", "frf", *map(str, args), "--quiet"],
+                              capture_output=True, text=True, cwd=ROOT)
+
+    r = run(stopped, "--out", a)
+    assert r.returncode == 3, r.stderr
+    part = load_branch(a / "branch.npz")
+    assert part["omega"].size < 25 and "harmonics" in part
+    r = run(full, "--harmonics", "auto", "--resume", a)
+    assert r.returncode == 0, r.stderr
+    r = run(full, "--harmonics", "auto", "--out", b)
+    assert r.returncode == 0, r.stderr
+    sa, sb = (json.loads((d / "summary.json").read_text()) for d in (a, b))
+    assert sa["status"] == sb["status"] == "complete"
+    assert sa["harmonics"] == sb["harmonics"] > 3
+    pa, pb = sa["peaks"]["m.x"], sb["peaks"]["m.x"]
+    assert pa["amp1_m"] == pytest.approx(pb["amp1_m"], rel=1e-8)
+    assert pa["omega_rad_s"] == pytest.approx(pb["omega_rad_s"], rel=1e-8)
+    ba = load_branch(a / "branch.npz")
+    np.testing.assert_array_equal(ba["harmonics"][:part["omega"].size], part["harmonics"])
+    r = run(full, "--harmonics", "many", "--out", tmp_path / "c")
+    assert r.returncode == 2 and "must be an integer or auto" in r.stderr
