@@ -50,6 +50,11 @@ def pytest_collection_modifyitems(config, items):
     for item in items:
         if durations.get(item.nodeid, 0.0) > SLOW_S:
             item.add_marker(pytest.mark.slow)
+    if getattr(config.option, "numprocesses", None):
+        # on pytest-xdist workers (make test): the longest tests first, so that no worker is left
+        # running a long one alone at the end (it was: demos/paper_figures.py's 2.5 min, on one of
+        # two workers, after the other had finished); the order is the same on every worker
+        items.sort(key=lambda it: -durations.get(it.nodeid, 0.0))
 
 
 def sdof(F, *, c=0.02, N0=1.0):
