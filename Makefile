@@ -13,9 +13,10 @@ demo: setup
 
 # the suite on up to TEST_JOBS pytest-xdist workers (the machine's cores, at most 4), each with one
 # BLAS thread so that the workers do not oversubscribe the cores (the sweeps already run BLAS on
-# one thread, linalg.sweep_blas); worksteal: a worker that runs out takes tests from the others
+# one thread, linalg.sweep_blas); tests/conftest.py orders the tests longest first, and xdist's
+# load scheduling hands them out in that order as workers free up
 TEST_JOBS ?= $(shell n=$$(nproc 2>/dev/null || echo 1); echo $$(( n < 4 ? n : 4 )))
-PYTEST_PAR := OPENBLAS_NUM_THREADS=1 $(PY) -m pytest -q -n $(TEST_JOBS) --dist worksteal
+PYTEST_PAR := OPENBLAS_NUM_THREADS=1 $(PY) -m pytest -q -n $(TEST_JOBS) --dist load
 
 test: setup
 	$(PYTEST_PAR) tests

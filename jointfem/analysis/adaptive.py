@@ -24,8 +24,8 @@ points (an adaptive harmonic balance in the sense of Jaumouille, Sinou and Petit
   point of the H = 23 branch's returning sheet lifted to H = 25 lay on a sheet that ran down into
   the separated branch).  The points after the one lifted are dropped and followed again;
 * H falls where the point's forces, truncated, predict e below ``lower_share`` of the target at a
-  lower H for ``lower_after`` points in a row, on a stretch at this H that has not folded (on the
-  beam, lowered on the returning sheet of the H = 15 branch's folded top, which runs towards the
+  lower H for ``lower_after`` points in a row, each a step the way the sweep goes (on the beam,
+  lowered on the returning sheet of the H = 15 branch's folded top, which runs back towards the
   separated branch with e near 0, the branch followed that sheet out of the window);
 * the branch goes on from the changed point along the secant of its last step: nothing before it
   is solved again.
@@ -59,9 +59,9 @@ class HarmonicAdaptation:
     """``target``: the largest truncation estimate a point may keep; ``H_max``: H is not raised
     beyond it (points above the target there are kept and counted); ``H_min``: nor lowered below;
     ``step``: H changes by this (2: a symmetric law has no even harmonics, so a step of 1 can leave
-    the estimate unchanged); ``lower_after``: points in a row (on a stretch at one H that has not
-    folded) whose estimate at a lower H is predicted below ``lower_share`` times the target before
-    H is lowered."""
+    the estimate unchanged); ``lower_after``: points in a row, each a step the way the sweep goes,
+    whose estimate at a lower H is predicted below ``lower_share`` times the target before H is
+    lowered."""
 
     target: float = 0.05
     H_max: int = 25
@@ -298,12 +298,13 @@ class _Tracer:
                         fresh_check[-1] = worst
                         if worst > ad.tol:
                             raise _Change(min(H + ad.step, ad.H_max), up)
-                    # not lowered on a stretch that has folded: on the beam at 3 N the H = 15 branch's
-                    # top folds back, its returning sheet runs towards the separated branch with an
-                    # estimate near 0, and lowered there the branch followed it out of the window
+                    # lowered only on points that move the way the sweep goes: on the beam at 3 N the
+                    # H = 15 branch's top folds back, its returning sheet runs towards the separated
+                    # branch with an estimate near 0, and lowered there the branch followed it out of
+                    # the window
                     lams = ([pts[-1].lam] if pts else []) + [f.lam for f in fresh]
-                    folded = len(lams) > 2 and np.unique(np.sign(np.diff(lams))).size > 1
-                    if (not folded and len(pts) + len(fresh) > quiet_until and rec.harmonics_enough is not None
+                    onward = len(lams) >= 2 and (lams[-1] - lams[-2]) * (self.omega_end - self.omega_start) > 0
+                    if (onward and len(pts) + len(fresh) > quiet_until and rec.harmonics_enough is not None
                             and rec.harmonics_enough < H):
                         low_run.append((p.lam, rec.harmonics_enough))
                         if len(low_run) >= ad.lower_after:
