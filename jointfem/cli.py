@@ -90,7 +90,9 @@ def cmd_frf(args) -> int:
                 print(f"{name}: no peak inside the range: largest {pk['amp1_m']:.6e} m at its end, "
                       f"{pk['omega_rad_s']:.6f} rad/s ({pk['freq_Hz']:.4f} Hz)")
                 continue
-            print(f"{name}: peak {pk['amp1_m']:.6e} m at {pk['omega_rad_s']:.6f} rad/s ({pk['freq_Hz']:.4f} Hz)")
+            bar = pk.get("change_at_higher_H_m")
+            print(f"{name}: peak {pk['amp1_m']:.6e} m" + ("" if bar is None else f" ± {bar:.1e} (its change at H + 2)")
+                  + f" at {pk['omega_rad_s']:.6f} rad/s ({pk['freq_Hz']:.4f} Hz)")
         print(_what_is_known(summary))
         print(f"{summary['num_points']} points, {summary['newton_iterations_total']} Newton iterations, "
               f"{summary['wall_s']['total']:.2f} s -> {out}/")

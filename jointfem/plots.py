@@ -73,11 +73,32 @@ def plot_branch(ax, x, y, stable, *, label: str, **kw):
     return line
 
 
+def plot_error_bars(ax, frf: FrequencyResponse, name: str, f_hz, a, *, color) -> None:
+    """An auto sweep's error bars (harmonics = "auto"): at each point checked, the change of the
+    first-harmonic amplitude when it is solved at H + 2 (branch.npz ``amplitude_change_m``), and at
+    the located peak the largest of those next to it (summary.json ``change_at_higher_H_m``).  On
+    a log axis a bar is cut just above zero."""
+    change = frf.info.get("arrays", {}).get("amplitude_change_m")
+    if change is None:
+        return
+    c = np.abs(np.asarray(change)[:, list(frf.outputs).index(name)])
+    m = np.isfinite(c)
+    if m.any():
+        ax.errorbar(f_hz[m], a[m], yerr=np.vstack([np.minimum(c[m], 0.999 * a[m]), c[m]]), fmt="none",
+                    ecolor=color, alpha=0.5, lw=0.8, capsize=1.5, label=f"{name}: change at H + 2 (error bar)")
+    peak, bar = frf.info.get("peaks", {}).get(name), frf.info.get("peak_changes", {}).get(name)
+    if peak is not None and peak.located and bar is not None:
+        ax.errorbar([peak.omega / (2 * np.pi)], [peak.amplitude], yerr=[[min(bar, 0.999 * peak.amplitude)], [bar]],
+                    fmt="o", ms=3.5, color=color, capsize=3,
+                    label=f"{name}: peak {peak.amplitude:.5e} ± {bar:.1e} m")
+
+
 def plot_frf(frf: FrequencyResponse, path: Path, *, title: str = "", harmonic_tol: float = 0.05) -> Path:
     """FRF of every output (first-harmonic amplitude and half peak-to-peak, m, against Hz), and
     below it the share of contact pairs sticking, slipping and separated along the branch.  As
     ``plot_levels``: dashed where unstable, the label saying where stability was not computed, and
-    dotted over the points whose truncation estimate exceeds ``harmonic_tol``."""
+    dotted over the points whose truncation estimate exceeds ``harmonic_tol``; an auto sweep's error
+    bars (``plot_error_bars``)."""
     plt = pyplot()
     has_contact = frf.states.shape[-1] > 0
     fig, axes = plt.subplots(2 if has_contact else 1, 1, figsize=(7.5, 6.5 if has_contact else 4.2), sharex=True,
@@ -95,6 +116,7 @@ def plot_frf(frf: FrequencyResponse, path: Path, *, title: str = "", harmonic_to
             plot_unconverged(ax, f_hz, a, bad, color=line.get_color(), alpha=0.6,
                              label=f"{name}: H = {frf.harmonics.H} not converged (truncation estimate "
                                    f"up to {np.max(he):.3g} > {harmonic_tol:g})")
+        plot_error_bars(ax, frf, name, f_hz, a, color=line.get_color())
     ax.set_ylabel("amplitude [m]")
     ax.set_yscale("log")
     readable_axes(ax)

@@ -187,6 +187,9 @@ def save_frf(frf: FrequencyResponse, out: Path, *, summary: dict) -> dict:
         if located is not None:  # how it was found: solved between the points, or the range's edge
             peaks[name].update(located=located.located, edge=located.edge, solves=located.solves,
                                residual=located.residual, **({"reason": located.reason} if located.reason else {}))
+        changes = frf.info.get("peak_changes", {})
+        if name in changes:  # an auto sweep's error bar of the peak (analysis.frf.peak_change)
+            peaks[name]["change_at_higher_H_m"] = changes[name]
         err = frf.info.get("peak_errors", {}).get(name)
         if err is not None:  # the same peak at (3H, 2N): the estimate of this one's truncation error
             peaks[name]["truncation_error"] = truncation_summary(err, a, w, list(frf.outputs).index(name))

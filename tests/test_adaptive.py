@@ -80,10 +80,22 @@ def test_auto_follows_the_branch_at_the_h_each_stretch_needs(tmp_path):
     a_ref, w_ref, rms_ref = _peak_and_rms(ref, "m.x")
     assert abs(a / a_ref - 1) < scene.solver.amplitude_tol and abs(rms / rms_ref - 1) < scene.solver.amplitude_tol
     assert abs(w / w_ref - 1) < 1e-3
+    # the peak's error bar, its change at H + 2 next to it, against its true error (measured 0.88x:
+    # 9.46e-5 for -1.07e-4); a factor of 3 either way is what the error bar promises (issue 46)
+    bar = frf.info["peak_changes"]["m.x"]
+    assert abs(a - a_ref) > 1e-4 * a_ref and 1 / 3 < bar / abs(a - a_ref) < 3
     write_frf(sol, scene, tmp_path / "out", method="full", rom_options=RomOptions())
     on_disk = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert on_disk["harmonics"] == H.max() and on_disk["harmonics_adaptive"]["H_top"] == H.max()
-    assert np.array_equal(load_branch(tmp_path / "out" / "branch.npz")["harmonics"], H)
+    assert on_disk["peaks"]["m.x"]["change_at_higher_H_m"] == bar
+    branch = load_branch(tmp_path / "out" / "branch.npz")
+    assert np.array_equal(branch["harmonics"], H)
+    # per point, the change of the amplitude at H + 2 where checked (the error bars of frf.png):
+    # not on the stuck points (estimate 0), and within amplitude_tol of the largest amplitude
+    change = branch["amplitude_change_m"]
+    assert change.shape == (frf.num_points, 1) and np.isnan(change[stuck]).all()
+    checked = np.isfinite(change[:, 0])
+    assert checked.sum() >= 5 and np.abs(change[checked]).max() <= scene.solver.amplitude_tol * a
 
 
 def test_auto_meets_its_amplitude_tolerance_at_a_superharmonic_resonance():
@@ -100,6 +112,25 @@ def test_auto_meets_its_amplitude_tolerance_at_a_superharmonic_resonance():
                                                      harmonic_adaptation=HarmonicAdaptation(tol=1e-3))), "b.x")
     assert abs(low[2] / ref[2] - 1) > 2e-3 and abs(low[0] / ref[0] - 1) > 1e-3  # the case is not vacuous
     assert abs(auto[0] / ref[0] - 1) < 1e-3 and abs(auto[2] / ref[2] - 1) < 1e-3
+
+
+def test_auto_error_bars_of_the_peaks_against_the_truth():
+    """The located peak's error bar of an auto sweep (its change at H + 2 at the branch points next
+    to it) within a factor of 3 of its true error, the sweep at H = 25: the SDOF Jenkins oscillator
+    at F = 0.05 and 0.2 (measured 0.58x and 0.88x; F = 0.5, 1.3x, is in the test above) and the two
+    masses at the 3:1 superharmonic resonance (0.72x, at H = 9)."""
+    from truncation import two_mass
+
+    cases = [(create_lumped(sdof(0.05)), (0.5, 2.0), "m.x", 256, 5e-3),
+             (create_lumped(sdof(0.2)), (0.5, 2.0), "m.x", 256, 5e-3), (two_mass(), (0.60, 0.65), "b.x", 1024, 1e-3)]
+    for model, (w0, w1), name, N, tol in cases:
+        ref = compute_frf(model, SweepOptions(w0, w1, Harmonics(25, N), stability=False)).info["peaks"][name]
+        auto = compute_frf(model, SweepOptions(w0, w1, Harmonics(3, N), stability=False,
+                                               harmonic_adaptation=HarmonicAdaptation(tol=tol)))
+        pk, bar = auto.info["peaks"][name], auto.info["peak_changes"][name]
+        true = abs(ref.amplitude - pk.amplitude)
+        assert true > 1e-5 * ref.amplitude, (name, true)  # the error is not round-off
+        assert 1 / 3 < bar / true < 3, (name, bar, true)
 
 
 def test_an_auto_sweep_stopped_by_its_budget_resumes_to_the_same_branch(tmp_path):

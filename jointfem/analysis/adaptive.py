@@ -120,13 +120,17 @@ class _Change(Exception):
 @dataclass
 class AdaptiveTrace:
     """What ``trace`` followed: ``points`` (coefficients at ``H_top``), the H each was solved at,
-    the check's change per point (NaN where not checked), the stop (a ContinuationError) if the
+    the check's change per point (NaN where not checked, inf where Newton found no solution at
+    H + step), ``amplitude_change``: per point and output, the change of the first-harmonic
+    amplitude from the point to the point solved at H + step, m (signed; NaN where not checked or
+    not solved), the stop (a ContinuationError) if the
     branch did not reach its end, the changes of H made (omega, from, to), the lowerings tried and
     not made (omega, from, to, why), and the continuation's summed step counts."""
 
     points: list[ContinuationPoint]
     H_of: np.ndarray
     check: np.ndarray
+    amplitude_change: np.ndarray  # (points, outputs)
     H_top: int
     stopped: ContinuationError | None
     changes: list[tuple[float, int, int]]
@@ -145,7 +149,7 @@ class _Tracer:
         self.record_at, self.callback = record_at, callback
         self.pts: list[ContinuationPoint] = []
         self.H_of: list[int] = []
-        self.check: list[float] = []
+        self.check: list[np.ndarray] = []  # per point: (the check, each output's amplitude change)
         self.changes, self.refused = [], []
         self.top: dict = {}  # output -> the largest first-harmonic amplitude on the branch so far
         self.outputs = None
@@ -204,17 +208,22 @@ class _Tracer:
         h = self.problem_at(H).harmonics
         return {name: amplitude_and_rms(output_signal(x, dof, h), h) for name, dof in self.outputs.items()}
 
-    def checked(self, p: ContinuationPoint, H: int, before) -> tuple[float, ContinuationPoint | None]:
+    def unchecked(self, worst: float = np.nan) -> np.ndarray:
+        return np.concatenate([[worst], np.full(len(self.outputs), np.nan)])
+
+    def checked(self, p: ContinuationPoint, H: int, before) -> tuple[np.ndarray, ContinuationPoint | None]:
         """The check of p (solved at H): the largest change of an output's first-harmonic amplitude
         or RMS, over the largest amplitude on the branch so far, from p to p solved at H + step
-        (inf where Newton finds none there), and that point."""
+        (inf where Newton finds none there), followed by each output's change of its first-harmonic
+        amplitude (m), and that point."""
         H_up = min(H + self.ad.step, self.ad.H_max)
         up = self.solve_at(p, H_up, before, record=False)  # (a point only checked needs no stability)
         if up is None:
-            return np.inf, None
+            return self.unchecked(np.inf), None
         now, then = self.signals(p.x, H), self.signals(up.x, H_up)
-        return max(max(abs(then[k][0] - now[k][0]), abs(then[k][1] - now[k][1])) / max(self.top[k], 1e-300)
-                   for k in now), up
+        worst = max(max(abs(then[k][0] - now[k][0]), abs(then[k][1] - now[k][1])) / max(self.top[k], 1e-300)
+                    for k in now)
+        return np.concatenate([[worst], [then[k][0] - now[k][0] for k in self.outputs]]), up
 
     def raised(self, want: int, ready: ContinuationPoint | None) -> ContinuationPoint | None:
         """The branch at H = want (or more, until the estimate meets the target) from its last point,
@@ -256,7 +265,7 @@ class _Tracer:
         if resume is not None:
             pts.extend(resume[0])
             self.H_of.extend(resume[1])
-            self.check.extend([np.nan] * len(resume[1]))
+            self.check.extend([self.unchecked() for _ in resume[1]])
             H = self.H_of[-1]
             for p, H_p in zip(pts, self.H_of):
                 for k, v in self.signals(p.x, H_p).items():
@@ -271,7 +280,7 @@ class _Tracer:
                 pb = self.problem_at(H)
                 sc = pb.scales(self.omega_start, self.omega_end)
                 fresh: list[ContinuationPoint] = []
-                fresh_check: list[float] = []
+                fresh_check: list[np.ndarray] = []
                 low_run: list[tuple[float, int]] = []  # (omega, harmonics_enough) of the run of points
                 first = [True]
 
@@ -282,7 +291,7 @@ class _Tracer:
                         return
                     first[0] = False
                     fresh.append(p)
-                    fresh_check.append(np.nan)
+                    fresh_check.append(self.unchecked())
                     if self.callback is not None:
                         self.callback(p)
                     rec = p.extra
@@ -294,8 +303,10 @@ class _Tracer:
                         raise _Change(min(H + ad.step, ad.H_max))
                     if H < ad.H_max and rec.harmonic_error > ad.check_share * ad.target:
                         before = fresh[-2] if len(fresh) >= 2 else (pts[-1] if pts else None)
-                        worst, up = self.checked(p, H, before)
-                        fresh_check[-1] = worst
+                        fresh_check[-1], up = self.checked(p, H, before)
+                        worst = fresh_check[-1][0]
+                        log.debug("harmonics: H = %d at omega = %.9g: e = %.3g, change at H + %d %.3g", H, p.lam,
+                                  rec.harmonic_error, ad.step, worst)
                         if worst > ad.tol:
                             raise _Change(min(H + ad.step, ad.H_max), up)
                     # lowered only on points that move the way the sweep goes: on the beam at 3 N the
@@ -365,7 +376,7 @@ class _Tracer:
                     H_new = new.extra.harmonics
                     self.changes.append((new.lam, self.H_of[-1], H_new))
                     log.info("harmonics: H %d -> %d at omega = %.6g rad/s", self.H_of[-1], H_new, new.lam)
-                    pts[-1], self.H_of[-1], self.check[-1] = new, H_new, np.nan
+                    pts[-1], self.H_of[-1], self.check[-1] = new, H_new, self.unchecked()
                     H = H_new
                 if self.past(pts[-1]):
                     break
@@ -380,7 +391,8 @@ class _Tracer:
             del self.H_of[len(pts):], self.check[len(pts):]
         H_top = max(self.H_of)
         out = [replace(p, x=resize(p.x, self.q(H_top), H_top)) for p in pts]
-        return AdaptiveTrace(out, np.array(self.H_of), np.array(self.check), H_top, stopped, self.changes,
+        check = np.array(self.check).reshape(len(pts), 1 + len(self.outputs))
+        return AdaptiveTrace(out, np.array(self.H_of), check[:, 0], check[:, 1:], H_top, stopped, self.changes,
                              self.refused, stats)
 
 

@@ -18,8 +18,8 @@ from ..models.structure import Structure
 from ..results import FrequencyResponse
 from ..rom.common import Reduction
 from .adaptive import HarmonicAdaptation, enough_harmonics, resize, trace
-from .convergence import PEAK_SPAN, TruncationEstimator, top_harmonic_share
-from .peaks import locate_peaks
+from .convergence import PEAK_SPAN, TruncationEstimator, amplitude_and_rms, top_harmonic_share
+from .peaks import locate_peaks, output_signal
 from .stability import ExponentTracker, is_stable
 
 log = logging.getLogger(__name__)
@@ -53,6 +53,20 @@ class SweepOptions:
     # where a point's truncation estimate passes the target, lowered where it is far below; None:
     # harmonics.H everywhere
     harmonic_adaptation: HarmonicAdaptation | None = None
+
+
+def peak_change(peak, omega: np.ndarray, X: np.ndarray, dof, H: int, change: np.ndarray) -> float | None:
+    """The error bar of a located peak of an auto sweep: the largest |change| of the first-harmonic
+    amplitude at H + step (analysis.adaptive's check) over the branch point nearest the peak (in
+    omega and amplitude, each over its range on the branch) and its two neighbours, or None where
+    none of them was checked (the estimate e did not call for it)."""
+    h = Harmonics(H, 2 * H + 1)
+    amp = np.array([amplitude_and_rms(output_signal(x, dof, h), h)[0] for x in X])
+    w_scale, a_scale = max(np.ptp(omega), 1e-300), max(np.ptp(amp), 1e-300)
+    i = int(np.argmin(((omega - peak.omega) / w_scale) ** 2 + ((amp - peak.amplitude) / a_scale) ** 2))
+    near = np.abs(change[max(i - 1, 0):i + 2])
+    near = near[np.isfinite(near)]
+    return float(near.max()) if near.size else None
 
 
 class SweepIncomplete(ContinuationError):
@@ -304,6 +318,13 @@ def compute_frf(model: Structure | Reduction, options: SweepOptions, *,
         # per point: the largest change of an output from H to H + step over the branch's largest
         # amplitude so far (analysis.adaptive's check; NaN where the estimate did not call for it)
         info["arrays"]["harmonic_check"] = adaptive.check
+        # per point and output: the change of the first-harmonic amplitude (m) from the point to the
+        # point solved at H + step (NaN where not checked): the error bars of frf.png, and each
+        # located peak's (info["peak_changes"])
+        info["arrays"]["amplitude_change_m"] = adaptive.amplitude_change
+        info["peak_changes"] = {
+            name: peak_change(p, omega, X, dof, adaptive.H_top, adaptive.amplitude_change[:, j])
+            for j, (name, dof) in enumerate(layout.outputs.items()) if (p := peaks.get(name)) is not None and p.located}
     if he.max() > tol:
         k = int(np.argmax(he))
         at = f"H = {h.H}" if adaptive is None else f"at H = {int(info['arrays']['harmonics'][k])}, harmonics_max"
