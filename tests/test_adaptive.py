@@ -57,11 +57,27 @@ def test_auto_follows_the_branch_at_the_h_each_stretch_needs(tmp_path):
     from jointfem.scene import load_scene
     from test_convergence import SCENE
 
+    from jointfem.analysis import stability
+
     path = tmp_path / "auto.toml"
     path.write_text(SCENE.format(solver='harmonics = "auto"\nsamples = 256'))
     scene = load_scene(path)
-    sol = solve_scene(scene)
+    calls = []
+    tracked = stability.ExponentTracker.__call__
+
+    def counted(self, x, lam, ev):
+        calls.append(lam)
+        return tracked(self, x, lam, ev)
+
+    stability.ExponentTracker.__call__ = counted
+    try:
+        sol = solve_scene(scene)
+    finally:
+        stability.ExponentTracker.__call__ = tracked
     frf = sol.frf
+    # the exponents of the final points only, once each (not of the points solved at an H that was
+    # then raised, nor of those solved to lift the branch), each at its own H (below)
+    assert frf.info["stability"] == "computed" and len(calls) == frf.num_points
     H = frf.info["arrays"]["harmonics"]
     he = frf.info["arrays"]["harmonic_error"]
     ad = frf.info["harmonics_adaptive"]
@@ -75,6 +91,9 @@ def test_auto_follows_the_branch_at_the_h_each_stretch_needs(tmp_path):
         x = resize(frf.U[i], 1, int(H[i]))
         assert np.abs(pb.evaluate(x, frf.omega[i], jacobian=False).R).max() < 1e-8 * 0.5
         assert np.abs(frf.U[i][x.size:]).max(initial=0.0) == 0.0  # the harmonics above its H are zero
+        ev = pb.evaluate(x, frf.omega[i], jacobian=True)
+        s = stability.leading_exponent(pb, x, frf.omega[i], ev)
+        assert frf.info["arrays"]["floquet_max_real"][i] == pytest.approx(s.real, rel=1e-9, abs=1e-12)
     ref = compute_frf(sol.structure, SweepOptions(0.5, 2.0, Harmonics(25, 256), stability=False))
     a, w, rms = _peak_and_rms(frf, "m.x")
     a_ref, w_ref, rms_ref = _peak_and_rms(ref, "m.x")
@@ -168,3 +187,32 @@ def test_an_auto_sweep_stopped_by_its_budget_resumes_to_the_same_branch(tmp_path
     np.testing.assert_array_equal(ba["harmonics"][:part["omega"].size], part["harmonics"])
     r = run(full, "--harmonics", "many", "--out", tmp_path / "c")
     assert r.returncode == 2 and "must be an integer or auto" in r.stderr
+
+
+def test_ctrl_c_in_an_auto_sweeps_stability_keeps_the_branch():
+    """An auto sweep's exponents are made once its branch is traced: Ctrl-C then keeps every point
+    (status incomplete, interrupted), the exponents made so far, and says so."""
+    from jointfem.analysis import stability
+    from jointfem.analysis.frf import SweepIncomplete
+
+    s = create_lumped(sdof(0.5))
+    opts = SweepOptions(0.5, 2.0, Harmonics(3, 256), stability=True, harmonic_adaptation=HarmonicAdaptation())
+    whole = compute_frf(s, opts)
+    tracked, calls = stability.ExponentTracker.__call__, []
+
+    def interrupted(self, x, lam, ev):
+        calls.append(lam)
+        if len(calls) > 5:
+            raise KeyboardInterrupt
+        return tracked(self, x, lam, ev)
+
+    stability.ExponentTracker.__call__ = interrupted
+    try:
+        with pytest.raises(SweepIncomplete) as stop:
+            compute_frf(s, opts)
+    finally:
+        stability.ExponentTracker.__call__ = tracked
+    frf = stop.value.frf
+    assert stop.value.interrupted and frf.info["status"] == "incomplete"
+    assert frf.num_points == whole.num_points and np.array_equal(frf.omega, whole.omega)
+    assert frf.info["stability"] == f"not computed: interrupted (Ctrl-C) with 5 of {frf.num_points} points' exponents made"

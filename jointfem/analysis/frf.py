@@ -55,6 +55,32 @@ class SweepOptions:
     harmonic_adaptation: HarmonicAdaptation | None = None
 
 
+def _stability_of(points, H_of, problem_at, recorder, trackers, stopped):
+    """The Floquet exponents of an auto sweep's final points, each in the problem of its own H, in
+    the branch's order (each H's ExponentTracker warm from its previous point).  Computed once the
+    branch is traced, not as each point is accepted: a point solved at an H that is then raised, or
+    only to lift the branch, is dropped (on the beam at 3 N, exact condensation, each accepted point
+    having its exponents made stability cost 3.5 times the sweep; docs/theory.md).  Ctrl-C here
+    leaves the rest without exponents and the sweep interrupted: its points are kept."""
+    out = []
+    try:
+        for p, H in zip(points, H_of):
+            pb = problem_at(int(H))
+            recorder(pb)  # (its tracker)
+            x = resize(p.x, pb.num_coefficients // pb.harmonics.num_hc, int(H))
+            if pb.adaptation is not None:
+                pb.adaptation.restore(pb.adaptation.state_of(x))
+            ev = pb.evaluate(x, p.lam, jacobian=True)
+            tracker = next(t for t in trackers if t.problem is pb)
+            out.append(replace(p, extra=replace(p.extra, stability=tracker(x, p.lam, ev))))
+    except KeyboardInterrupt:
+        log.warning("stability interrupted (Ctrl-C): %d of %d points have their exponents", len(out), len(points))
+        if stopped is None:
+            stopped = ContinuationError("stability interrupted (Ctrl-C)", points=points, interrupted=True)
+        out += points[len(out):]
+    return out, stopped
+
+
 def peak_change(peak, omega: np.ndarray, X: np.ndarray, dof, H: int, change: np.ndarray) -> float | None:
     """The error bar of a located peak of an auto sweep: the largest |change| of the first-harmonic
     amplitude at H + step (analysis.adaptive's check) over the branch point nearest the peak (in
@@ -186,12 +212,12 @@ def compute_frf(model: Structure | Reduction, options: SweepOptions, *,
 
         def record(U, omega):
             # (called as the continuation accepts a point: the unknowns now are those it was solved in)
-            ev = pb.evaluate(U, omega, jacobian=stability)
+            ev = pb.evaluate(U, omega, jacobian=stability and adaptation is None)
             rec = replace(pb.record(U, omega, ev), harmonic_error=top_harmonic_share(ev.contact, hh),
                           unknowns=pb.num_unknowns, harmonics=hh.H)
             if adaptation is not None:
                 rec = replace(rec, harmonics_enough=enough_harmonics(ev.contact, hh, adaptation))
-            if stability:
+            if stability and adaptation is None:  # (an auto sweep's: of its final points, below)
                 rec = replace(rec, stability=exponent(U, omega, ev))
             return rec
 
@@ -243,6 +269,8 @@ def compute_frf(model: Structure | Reduction, options: SweepOptions, *,
         if adaptive.stopped is not None and len(adaptive.points) < 2:
             raise adaptive.stopped
         points, stopped, steps = adaptive.points, adaptive.stopped, adaptive.stats
+        if stability:
+            points, stopped = _stability_of(points, adaptive.H_of, problem_at, recorder, trackers, stopped)
         # the branch's points are at its largest H: so are its peaks, layout and result
         problem = problem_at(adaptive.H_top)
         h, nh = problem.harmonics, problem.harmonics.num_hc
@@ -360,6 +388,9 @@ def compute_frf(model: Structure | Reduction, options: SweepOptions, *,
         info["stability"] = (f"not computed: {problem.hill_size} unknowns > {options.stability_auto_unknowns}, "
                              f"the automatic limit (an eigensolve of twice the unknowns of Hill's problem per "
                              f"point; --stability on computes it)")
+    elif stability and stopped is not None and stopped.interrupted:
+        info["stability"] = (f"not computed: interrupted (Ctrl-C) with {int(np.isfinite(re).sum())} of {omega.size} "
+                             f"points' exponents made")
     elif failures := [f for t in trackers for f in t.failures]:
         w_fail, what = failures[0]
         info["stability"] = (f"not computed: Hill's eigensolve failed at {len(failures)} of {omega.size} "
