@@ -351,8 +351,8 @@ def compute_frf(model: Structure | Reduction, options: SweepOptions, *,
         # located peak's (info["peak_changes"])
         info["arrays"]["amplitude_change_m"] = adaptive.amplitude_change
         info["peak_changes"] = {
-            name: peak_change(p, omega, X, dof, adaptive.H_top, adaptive.amplitude_change[:, j])
-            for j, (name, dof) in enumerate(layout.outputs.items()) if (p := peaks.get(name)) is not None and p.located}
+            name: peak_change(peaks[name], omega, X, dof, adaptive.H_top, adaptive.amplitude_change[:, j])
+            for j, (name, dof) in enumerate(layout.outputs.items()) if name in peaks and peaks[name].located}
     if he.max() > tol:
         k = int(np.argmax(he))
         at = f"H = {h.H}" if adaptive is None else f"at H = {int(info['arrays']['harmonics'][k])}, harmonics_max"
