@@ -144,6 +144,14 @@ def largest_harmonics(scene: Scene) -> Harmonics:
                      s.samples if s.samples_given or not s.harmonics_auto else default_samples(s.harmonics_max))
 
 
+def at_one_harmonics(scene: Scene, why: str) -> None:
+    """Refuse harmonics = "auto" (chosen along an FRF's branch, by `jointfem frf` only) for a command
+    that solves at one H, with one line before any work."""
+    if scene.solver.harmonics_auto:
+        raise SceneError(scene.path, "solver.harmonics", "auto", f"{why}: give harmonics a number, or --harmonics "
+                         "(jointfem frf chooses H along its branch with \"auto\")")
+
+
 def check_resources(scene: Scene, structure: Structure) -> None:
     """Refuse, with one line and the estimate, a sweep whose arrays would not fit in half of this
     machine's memory (``--harmonics 100000`` asked for 298 GiB before it failed)."""
@@ -723,9 +731,7 @@ def compare_scene(scene: Scene, methods: str | None, defaults: RomOptions, *, ou
     from .results import atomic_write_text, write_table
 
     specs = [parse_method(m, defaults) for m in (methods or COMPARE_METHODS).split(",") if m.strip()]
-    if scene.solver.harmonics_auto:
-        raise SceneError(scene.path, "solver.harmonics", "auto", "compare measures every method at one H: give "
-                         "harmonics a number, or --harmonics (jointfem frf chooses H with \"auto\")")
+    at_one_harmonics(scene, "compare measures every method at one H")
     check_solvable(scene)
     structure = create_structure(scene)
     specs, left_out = applicable_methods(specs, structure, given=methods is not None)

@@ -151,6 +151,7 @@ def cmd_force(args) -> int:
     from .scene import check_solvable, create_structure
 
     scene = app.override_harmonics(app.override(load_scene(args.scene), args.set), args.harmonics, args.samples)
+    app.at_one_harmonics(scene, "a force sweep is solved at one H")
     out = Path(args.out) if args.out else Path("results") / f"{scene.name}_force"
     if not args.omega > 0:
         raise SceneError("--omega", "omega", args.omega, "must be > 0 rad/s")
@@ -193,6 +194,7 @@ def cmd_nma(args) -> int:
     from . import app, parallel
 
     scene = app.override_harmonics(app.override(load_scene(args.scene), args.set), args.harmonics, args.samples)
+    app.at_one_harmonics(scene, "a nonlinear mode is followed at one H")
     out = Path(args.out) if args.out else Path("results") / f"{scene.name}_nma"
     if args.mode is not None and args.mode < 1:
         raise SceneError("--mode", "mode", args.mode, "must be >= 1 (1 = the lowest mode)")

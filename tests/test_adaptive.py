@@ -215,4 +215,29 @@ def test_ctrl_c_in_an_auto_sweeps_stability_keeps_the_branch():
     frf = stop.value.frf
     assert stop.value.interrupted and frf.info["status"] == "incomplete"
     assert frf.num_points == whole.num_points and np.array_equal(frf.omega, whole.omega)
-    assert frf.info["stability"] == f"not computed: interrupted (Ctrl-C) with 5 of {frf.num_points} points' exponents made"
+    made = f"not computed: interrupted (Ctrl-C) with 5 of {frf.num_points} points' exponents made"
+    assert frf.info["stability"] == made
+
+
+def test_force_and_nma_refuse_auto_harmonics_with_one_line(tmp_path):
+    """harmonics = "auto" is chosen along an FRF's branch: `jointfem force` and `jointfem nma`, which
+    solve at one H, refuse it with one line naming the file and the key, exit 2, nothing written
+    (they used to solve at the starting H = 3 without a word); --harmonics gives them one H."""
+    import subprocess
+
+    scene = tmp_path / "auto.toml"
+    text = (ROOT / "demos" / "sdof_jenkins.toml").read_text().replace("harmonics = 7", 'harmonics = "auto"')
+    assert 'harmonics = "auto"' in text
+    scene.write_text(text)  # (the demo has an [nma] table)
+
+    def run(*args):
+        return subprocess.run([sys.executable, "-m", "jointfem", *map(str, args), "--quiet"], capture_output=True,
+                              text=True, cwd=ROOT)
+
+    for command, extra in (("force", ["--omega", "1.3"]), ("nma", [])):
+        r = run(command, scene, *extra, "--out", tmp_path / command)
+        assert r.returncode == 2 and r.stderr.count("\n") == 1, r.stderr
+        assert f"{scene}: solver.harmonics = 'auto'" in r.stderr and "at one H" in r.stderr
+        assert not (tmp_path / command).exists()
+    r = run("force", scene, "--omega", "1.3", "--scale", "0.01", "0.02", "--harmonics", "3", "--out", tmp_path / "f3")
+    assert r.returncode == 0, r.stderr
