@@ -55,7 +55,7 @@ class SweepOptions:
     harmonic_adaptation: HarmonicAdaptation | None = None
 
 
-def _stability_of(points, H_of, problem_at, recorder, trackers, stopped):
+def _stability_of(points, H_of, problem_at, tracker_of, stopped):
     """The Floquet exponents of an auto sweep's final points, each in the problem of its own H, in
     the branch's order (each H's ExponentTracker warm from its previous point).  Computed once the
     branch is traced, not as each point is accepted: a point solved at an H that is then raised, or
@@ -66,13 +66,11 @@ def _stability_of(points, H_of, problem_at, recorder, trackers, stopped):
     try:
         for p, H in zip(points, H_of):
             pb = problem_at(int(H))
-            recorder(pb)  # (its tracker)
             x = resize(p.x, pb.num_coefficients // pb.harmonics.num_hc, int(H))
             if pb.adaptation is not None:
                 pb.adaptation.restore(pb.adaptation.state_of(x))
             ev = pb.evaluate(x, p.lam, jacobian=True)
-            tracker = next(t for t in trackers if t.problem is pb)
-            out.append(replace(p, extra=replace(p.extra, stability=tracker(x, p.lam, ev))))
+            out.append(replace(p, extra=replace(p.extra, stability=tracker_of(pb)(x, p.lam, ev))))
     except KeyboardInterrupt:
         log.warning("stability interrupted (Ctrl-C): %d of %d points have their exponents", len(out), len(points))
         if stopped is None:
@@ -81,12 +79,11 @@ def _stability_of(points, H_of, problem_at, recorder, trackers, stopped):
     return out, stopped
 
 
-def peak_change(peak, omega: np.ndarray, X: np.ndarray, dof, H: int, change: np.ndarray) -> float | None:
+def peak_change(peak, omega: np.ndarray, X: np.ndarray, dof, h: Harmonics, change: np.ndarray) -> float | None:
     """The error bar of a located peak of an auto sweep: the largest |change| of the first-harmonic
     amplitude at H + step (analysis.adaptive's check) over the branch point nearest the peak (in
     omega and amplitude, each over its range on the branch) and its two neighbours, or None where
-    none of them was checked (the estimate e did not call for it)."""
-    h = Harmonics(H, 2 * H + 1)
+    none of them was checked (the estimate e did not call for it).  ``X``: the points at ``h``."""
     amp = np.array([amplitude_and_rms(output_signal(x, dof, h), h)[0] for x in X])
     w_scale, a_scale = max(np.ptp(omega), 1e-300), max(np.ptp(amp), 1e-300)
     i = int(np.argmin(((omega - peak.omega) / w_scale) ** 2 + ((amp - peak.amplitude) / a_scale) ** 2))
@@ -196,28 +193,35 @@ def compute_frf(model: Structure | Reduction, options: SweepOptions, *,
             or problem.hill_size * (2 * H_most + 1) // nh <= options.stability_auto_unknowns)
     problems = {h.H: problem}
     recorders = {}
-    trackers = []
+    trackers: dict[int, ExponentTracker] = {}  # id(problem) -> its tracker along the branch
+    # each point's exponents as it is accepted; an auto sweep's are made for its final points
+    # once the branch is traced (_stability_of)
+    each_point = stability and adaptation is None
 
     def problem_at(H: int) -> Problem:
         if H not in problems:
             problems[H] = create_problem(model, Harmonics(H, h.N))
         return problems[H]
 
+    def tracker_of(pb: Problem) -> ExponentTracker:
+        if id(pb) not in trackers:
+            trackers[id(pb)] = ExponentTracker(pb)
+        return trackers[id(pb)]
+
     def recorder(pb: Problem):
         if id(pb) in recorders:
             return recorders[id(pb)]
         hh = pb.harmonics
-        exponent = ExponentTracker(pb)
-        trackers.append(exponent)
+        exponent = tracker_of(pb)
 
         def record(U, omega):
             # (called as the continuation accepts a point: the unknowns now are those it was solved in)
-            ev = pb.evaluate(U, omega, jacobian=stability and adaptation is None)
+            ev = pb.evaluate(U, omega, jacobian=each_point)
             rec = replace(pb.record(U, omega, ev), harmonic_error=top_harmonic_share(ev.contact, hh),
                           unknowns=pb.num_unknowns, harmonics=hh.H)
             if adaptation is not None:
                 rec = replace(rec, harmonics_enough=enough_harmonics(ev.contact, hh, adaptation))
-            if stability and adaptation is None:  # (an auto sweep's: of its final points, below)
+            if each_point:
                 rec = replace(rec, stability=exponent(U, omega, ev))
             return rec
 
@@ -270,7 +274,7 @@ def compute_frf(model: Structure | Reduction, options: SweepOptions, *,
             raise adaptive.stopped
         points, stopped, steps = adaptive.points, adaptive.stopped, adaptive.stats
         if stability:
-            points, stopped = _stability_of(points, adaptive.H_of, problem_at, recorder, trackers, stopped)
+            points, stopped = _stability_of(points, adaptive.H_of, problem_at, tracker_of, stopped)
         # the branch's points are at its largest H: so are its peaks, layout and result
         problem = problem_at(adaptive.H_top)
         h, nh = problem.harmonics, problem.harmonics.num_hc
@@ -351,7 +355,7 @@ def compute_frf(model: Structure | Reduction, options: SweepOptions, *,
         # located peak's (info["peak_changes"])
         info["arrays"]["amplitude_change_m"] = adaptive.amplitude_change
         info["peak_changes"] = {
-            name: peak_change(peaks[name], omega, X, dof, adaptive.H_top, adaptive.amplitude_change[:, j])
+            name: peak_change(peaks[name], omega, X, dof, h, adaptive.amplitude_change[:, j])
             for j, (name, dof) in enumerate(layout.outputs.items()) if name in peaks and peaks[name].located}
     if he.max() > tol:
         k = int(np.argmax(he))
@@ -391,7 +395,7 @@ def compute_frf(model: Structure | Reduction, options: SweepOptions, *,
     elif stability and stopped is not None and stopped.interrupted:
         info["stability"] = (f"not computed: interrupted (Ctrl-C) with {int(np.isfinite(re).sum())} of {omega.size} "
                              f"points' exponents made")
-    elif failures := [f for t in trackers for f in t.failures]:
+    elif failures := [f for t in trackers.values() for f in t.failures]:
         w_fail, what = failures[0]
         info["stability"] = (f"not computed: Hill's eigensolve failed at {len(failures)} of {omega.size} "
                              f"points (first at omega = {w_fail:.6g} rad/s: {what})")
