@@ -289,20 +289,25 @@ class CondensedProblem(KeepsLastEvaluation, Problem):
             w = np.ones_like(mu)  # V^T K V = I
             R = receptance(w)
         else:
-            dx = d - xi * mu if xi else d
-            z = 1.0 - kw**2 * mu + 1j * kw * dx
+            stiff = self._stiff(k, omega, xi or 0.0) if rayleigh is not None else None
+            # without recovery the stiff modes enter through the series alone: w, q and qxi are formed
+            # over the low modes only (the same numbers, elementwise; a stiff mode's z is not 0)
+            part = stiff[0] if stiff is not None and not recovery else None
+            mu_k, d_k = (mu, d) if part is None else (mu[part], d[part])
+            dx = d_k - xi * mu_k if xi else d_k
+            z = 1.0 - kw**2 * mu_k + 1j * kw * dx
             if np.any(z == 0):
                 raise LinAlgError(f"exact condensation: dynamic stiffness of harmonic {k} at omega = {omega:.6g} "
                                   "rad/s is singular (an undamped resonance)")
             w = 1.0 / z
-            q = (-2.0 * k * k * omega * mu + 1j * k * dx) * w * w  # z'/z^2: X^T Z' X = B diag(q) B^T
-            qxi = (-1j * kw) * mu * w * w
-            stiff = self._stiff(k, omega, xi or 0.0) if rayleigh is not None else None
+            q = (-2.0 * k * k * omega * mu_k + 1j * k * dx) * w * w  # z'/z^2: X^T Z' X = B diag(q) B^T
+            qxi = (-1j * kw) * mu_k * w * w
             if stiff is None:
                 R = receptance(w)
             else:
                 low, Bl, c, cw, cxi, P, g = stiff
-                R = receptance(w[low], Bl) + _series(c, P)
+                wl, ql, qxl = (w, q, qxi) if part is not None else (w[low], q[low], qxi[low])
+                R = receptance(wl, Bl) + _series(c, P)
         try:
             S = np.linalg.inv(R)
         except np.linalg.LinAlgError as exc:
@@ -317,11 +322,11 @@ class CondensedProblem(KeepsLastEvaluation, Problem):
             dSxi = zero if xi is None else S @ receptance(qxi) @ S
             ylin, dylin = (B @ (w * f1), -(B @ (q * f1))) if k == 1 else (None, None)
         else:  # receptance(q) = -dR/domega, receptance(qxi) = -dR/dxi
-            dS = S @ (receptance(q[low], Bl) - _series(cw, P)) @ S
-            dSxi = zero if xi is None else S @ (receptance(qxi[low], Bl) - _series(cxi, P)) @ S
+            dS = S @ (receptance(ql, Bl) - _series(cw, P)) @ S
+            dSxi = zero if xi is None else S @ (receptance(qxl, Bl) - _series(cxi, P)) @ S
             if k == 1:
                 fl = f1[low]
-                ylin, dylin = Bl @ (w[low] * fl) + c @ g, -(Bl @ (q[low] * fl)) + cw @ g
+                ylin, dylin = Bl @ (wl * fl) + c @ g, -(Bl @ (ql * fl)) + cw @ g
         if k != 1:
             ylin = dylin = np.zeros(self.r, dtype=complex)
         return _Harmonic(S, dS, dSxi, ylin, dylin, T)
@@ -381,11 +386,6 @@ class CondensedProblem(KeepsLastEvaluation, Problem):
             self._ops = (key, data)
         return self._ops[1]
 
-    @staticmethod
-    def _real_block(S):
-        """Real form of a complex operator on (c - i s): [[Sr, Si], [-Si, Sr]]."""
-        return np.block([[S.real, S.imag], [-S.imag, S.real]])
-
     # ---- the problem protocol (jointfem.hbm.problem) -------------------------------------
     def _evaluate(self, U, omega, jacobian):
         R, J, dR, _, contact = self._assemble(U, self._operators(float(omega)), jacobian, forced=True)
@@ -423,9 +423,9 @@ class CondensedProblem(KeepsLastEvaluation, Problem):
                 dR[c], dR[s_] = dE.real, -dE.imag
                 dE = op.dSxi @ Yk
                 dRxi[c], dRxi[s_] = dE.real, -dE.imag
-                blk = self._real_block(op.S)
-                J[np.ix_(np.r_[c * r:(c + 1) * r, s_ * r:(s_ + 1) * r],
-                         np.r_[c * r:(c + 1) * r, s_ * r:(s_ + 1) * r])] = blk
+                # the real form of S on (c - i s), [[Sr, Si], [-Si, Sr]], written block by block
+                rc, rs = slice(c * r, (c + 1) * r), slice(s_ * r, (s_ + 1) * r)
+                J[rc, rc], J[rc, rs], J[rs, rc], J[rs, rs] = op.S.real, op.S.imag, -op.S.imag, op.S.real
         R = R.ravel()
         contact = []
         for g, idx, rows_, cols_, f0 in self._groups:
@@ -558,7 +558,9 @@ SPLIT_ORDER = 26
 
 def _series(c: np.ndarray, P: np.ndarray) -> np.ndarray:
     """sum_p c_p P_p, c complex, P real (p, r, r)."""
-    return np.tensordot(c.real, P, axes=1) + 1j * np.tensordot(c.imag, P, axes=1)
+    # (np.tensordot's own product, without its per-call overhead: this runs per harmonic and evaluation)
+    flat = P.reshape(P.shape[0], -1)
+    return (np.dot(c.real[None, :], flat) + 1j * np.dot(c.imag[None, :], flat)).reshape(P.shape[1:])
 
 _LAST_BASIS: list = []  # [(K, M, D), ModalBasis] of the last structure whose basis was computed
 
