@@ -12,11 +12,14 @@ demo: setup
 	$(PY) demos/jointed_beam_levels.py --out results/beam2d_levels
 
 # the suite on up to TEST_JOBS pytest-xdist workers (the machine's cores, at most 4), each with one
-# BLAS thread so that the workers do not oversubscribe the cores (the sweeps already run BLAS on
-# one thread, linalg.sweep_blas); tests/conftest.py orders the tests longest first, and xdist's
+# BLAS thread and one numba thread so that the workers do not oversubscribe the cores (the sweeps
+# already run BLAS on one thread, linalg.sweep_blas; the AFT kernels' prange loops take every core
+# by default, and GNU OpenMP's waiting threads then spin: in the lap3d strong-separation sweep the AFT
+# kernel took 33 s beside another job against 4.5 s alone, both under cProfile; with one numba
+# thread the sweep took 54 s beside another job); tests/conftest.py orders the tests longest first, and xdist's
 # load scheduling hands them out in that order as workers free up
 TEST_JOBS ?= $(shell n=$$(nproc 2>/dev/null || echo 1); echo $$(( n < 4 ? n : 4 )))
-PYTEST_PAR := OPENBLAS_NUM_THREADS=1 $(PY) -m pytest -q -n $(TEST_JOBS) --dist load
+PYTEST_PAR := OPENBLAS_NUM_THREADS=1 NUMBA_NUM_THREADS=1 $(PY) -m pytest -q -n $(TEST_JOBS) --dist load
 
 test: setup
 	$(PYTEST_PAR) tests
