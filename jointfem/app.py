@@ -303,14 +303,24 @@ def _distributed_rom(scene: Scene, method: str, rom_options: RomOptions):
     return ModelSummary(model.num_dofs, int(model.info["num_pairs"]), dict(model.outputs), info), rom
 
 
-def solve_scene(scene: Scene, *, progress: bool = False, method: str = "full",
-                rom_options: RomOptions = RomOptions(), stability: str = "auto",
+def reduction_of(scene: Scene, method: str | None = None,
+                 rom_options: RomOptions | None = None) -> tuple[str, RomOptions]:
+    """The method and options given, else the scene's [reduction] table's (full order without one)."""
+    red = scene.reduction
+    return (red.method if method is None else method,
+            RomOptions(modes=red.modes, tvd=red.tvd, tvd_kind=red.tvd_kind) if rom_options is None else rom_options)
+
+
+def solve_scene(scene: Scene, *, progress: bool = False, method: str | None = None,
+                rom_options: RomOptions | None = None, stability: str = "auto",
                 keep_incomplete: bool = False, resume: Resume | None = None) -> SceneSolution:
     """Build the model of a scene (and its ROM) and compute its FRF (``stability``: auto, on, off).
+    ``method``, ``rom_options``: the scene's [reduction] where not given (reduction_of).
 
     A sweep that stops early (a stall, the time limit, Ctrl-C) raises SweepIncomplete, or, with
     ``keep_incomplete``, returns its converged points with ``incomplete`` set.  ``resume`` (from
     load_resume) goes on with a branch that stopped."""
+    method, rom_options = reduction_of(scene, method, rom_options)
     check_solvable(scene)
     t0 = time.perf_counter()
     if rom_options.offline == "distributed":
@@ -789,10 +799,13 @@ def check_nma(scene: Scene, structure: Structure, options) -> None:
         raise SceneError(scene.path, "nma.mode", options.mode, f"the model has only {structure.num_dofs} DOFs")
 
 
-def solve_nma(scene: Scene, *, method: str = "full", rom_options: RomOptions = RomOptions(), mode: int | None = None,
-              progress: bool = False, keep_incomplete: bool = True) -> NmaSolution:
-    """Build the model of a scene (and its ROM) and follow its nonlinear mode ([nma] table)."""
+def solve_nma(scene: Scene, *, method: str | None = None, rom_options: RomOptions | None = None,
+              mode: int | None = None, progress: bool = False, keep_incomplete: bool = True) -> NmaSolution:
+    """Build the model of a scene (and its ROM) and follow its nonlinear mode ([nma] table);
+    ``method``, ``rom_options``: the scene's [reduction] where not given."""
     from .analysis.nma import NmaError, NmaIncomplete, compute_backbone
+
+    method, rom_options = reduction_of(scene, method, rom_options)
 
     opts = nma_options(scene, mode=mode)
     check_solvable(scene)

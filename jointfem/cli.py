@@ -22,10 +22,16 @@ from .rom import METHODS, RomError, RomOptions
 from .scene import SceneError, load_scene
 
 
-def _rom_options(args, *, offline: str = "replicated") -> RomOptions:
-    if args.modes < 0 or args.tvd < 0:
-        raise RomError(f"--modes = {args.modes} and --tvd = {args.tvd} must be >= 0")
-    return RomOptions(modes=args.modes, tvd=args.tvd, tvd_kind=args.tvd_kind, offline=offline)
+def _rom_options(args, scene, *, offline: str = "replicated") -> RomOptions:
+    """The reduction's options: each flag given, else the scene's [reduction] key (the method:
+    ``args.method or scene.reduction.method``)."""
+    red = scene.reduction
+    modes = red.modes if args.modes is None else args.modes
+    tvd = red.tvd if args.tvd is None else args.tvd
+    if modes < 0 or tvd < 0:
+        raise RomError(f"--modes = {modes} and --tvd = {tvd} must be >= 0")
+    return RomOptions(modes=modes, tvd=tvd, tvd_kind=red.tvd_kind if args.tvd_kind is None else args.tvd_kind,
+                      offline=offline)
 
 
 def _count(least: int):
@@ -42,17 +48,20 @@ def _count(least: int):
 
 
 def _rom_args(parser) -> None:
-    parser.add_argument("--modes", type=int, default=defaults.ROM_MODES,
-                        help=f"vibration modes of the ROM (default {defaults.ROM_MODES})")
-    parser.add_argument("--tvd", type=int, default=defaults.ROM_TVD,
-                        help=f"trial-vector derivatives (penalty, tvd; default {defaults.ROM_TVD})")
+    parser.add_argument("--modes", type=int,
+                        help=f"vibration modes of the ROM (default: the scene's [reduction] modes, else "
+                             f"{defaults.ROM_MODES})")
+    parser.add_argument("--tvd", type=int,
+                        help=f"trial-vector derivatives (penalty, tvd; default: the scene's [reduction] tvd, else "
+                             f"{defaults.ROM_TVD})")
     _tvd_kind_arg(parser)
 
 
 def _tvd_kind_arg(parser) -> None:
     from .rom.cms import TVD_KINDS
-    parser.add_argument("--tvd-kind", choices=TVD_KINDS, default="eigen",
-                        help="eigen (default): exact eigenvector derivatives with respect to each contact stiffness; "
+    parser.add_argument("--tvd-kind", choices=TVD_KINDS,
+                        help="eigen (default, or the scene's [reduction] tvd_kind): exact eigenvector derivatives "
+                             "with respect to each contact stiffness; "
                              "eq12: the paper's static modal derivatives (tvd method; docs/theory.md)")
 
 
@@ -66,18 +75,19 @@ def cmd_frf(args) -> int:
     out = Path(args.out) if args.out else Path("results") / scene.name
     t0 = time.perf_counter()
     root = parallel.is_root()
-    options = _rom_options(args, offline=args.offline)
+    options = _rom_options(args, scene, offline=args.offline)
+    method = args.method or scene.reduction.method
     resume = None
     if args.resume:
         out = Path(args.out) if args.out else Path(args.resume)
-        resume = app.load_resume(Path(args.resume), scene, args.method, options)
+        resume = app.load_resume(Path(args.resume), scene, method, options)
     if root:
         app.check_output(out)  # before any solve
-    solution = app.solve_scene(scene, progress=not args.quiet and root, method=args.method, rom_options=options,
+    solution = app.solve_scene(scene, progress=not args.quiet and root, method=method, rom_options=options,
                                stability=args.stability, keep_incomplete=True, resume=resume)
     if not root:  # every rank solved the same replicated problem; rank 0 writes it once
         return 0
-    summary = app.write_frf(solution, scene, out, method=args.method, rom_options=options,
+    summary = app.write_frf(solution, scene, out, method=method, rom_options=options,
                             mpi_ranks=parallel.size(), wall_start=t0, plots=args.plots)
     if solution.incomplete is not None:
         stop = solution.incomplete
@@ -158,17 +168,18 @@ def cmd_force(args) -> int:
     lo, hi = args.scale
     if not 0 < lo < hi:
         raise SceneError("--scale", "scale", [lo, hi], "must be 0 < start < end")
-    options = _rom_options(args)
+    options = _rom_options(args, scene)
+    method = args.method or scene.reduction.method
     resume = None
     if args.resume:
         out = Path(args.out) if args.out else Path(args.resume)
-        resume = app.load_force_resume(Path(args.resume), scene, args.method, options, args.omega)
+        resume = app.load_force_resume(Path(args.resume), scene, method, options, args.omega)
     if parallel.is_root():
         app.check_output(out)
     check_solvable(scene)
     structure = create_structure(scene)
     app.check_resources(scene, structure)
-    model = structure if args.method == "full" else build_rom(structure, args.method, options)
+    model = structure if method == "full" else build_rom(structure, method, options)
     app.check_time(scene, model, Harmonics(scene.solver.harmonics, scene.solver.samples), args.omega)
     opts = app.sweep_options(scene, stability="off").continuation
     stopped = None
@@ -179,7 +190,7 @@ def cmd_force(args) -> int:
         resp, stopped = exc.response, exc
     if not parallel.is_root():
         return 0
-    summary = app.write_force(resp, scene, out, method=args.method, rom_options=options)
+    summary = app.write_force(resp, scene, out, method=method, rom_options=options)
     if stopped is not None:
         print(f"jointfem: force sweep incomplete: {stopped}. The {summary['num_points']} converged points are in "
               f"{out}/ (summary.json status \"incomplete\"; go on with --resume {out})", file=sys.stderr)
@@ -202,14 +213,15 @@ def cmd_nma(args) -> int:
         raise SceneError("--frf", "frf", args.frf, "is not a result folder of `jointfem frf` (no branch.npz in it)")
     app.nma_options(scene, mode=args.mode)  # a scene without [nma]: one line, before any work
     t0 = time.perf_counter()
-    options = _rom_options(args)
+    options = _rom_options(args, scene)
+    method = args.method or scene.reduction.method
     if parallel.is_root():
         app.check_output(out)
-    solution = app.solve_nma(scene, method=args.method, rom_options=options, mode=args.mode,
+    solution = app.solve_nma(scene, method=method, rom_options=options, mode=args.mode,
                              progress=not args.quiet and parallel.is_root())
     if not parallel.is_root():
         return 0
-    summary = app.write_nma(solution, scene, out, method=args.method, rom_options=options,
+    summary = app.write_nma(solution, scene, out, method=method, rom_options=options,
                             frf_folder=Path(args.frf) if args.frf else None, wall_start=t0)
     if args.plots and solution.structure.num_pairs:
         from .viz import plot_folder
@@ -255,10 +267,10 @@ def cmd_compare(args) -> int:
     if args.analysis == "nma":
         app.nma_options(scene)  # a scene without [nma]: one line, before any work
         app.check_output(out)
-        md = app.compare_nma_scene(scene, args.methods, _rom_options(args), out=out, reference=args.reference,
+        md = app.compare_nma_scene(scene, args.methods, _rom_options(args, scene), out=out, reference=args.reference,
                                    progress=progress)
     else:
-        md = app.compare_scene(scene, args.methods, _rom_options(args), out=out, output=args.output,
+        md = app.compare_scene(scene, args.methods, _rom_options(args, scene), out=out, output=args.output,
                                reference=args.reference, progress=progress, stability=args.stability)
     if not args.quiet:
         print(md)
@@ -310,7 +322,8 @@ def build_parser() -> argparse.ArgumentParser:
     f.add_argument("--harmonics", type=_harmonics_arg,
                    help='number of harmonics H, or "auto" (H chosen along the branch; overrides the scene)')
     f.add_argument("--samples", type=int, help="AFT time samples N >= 2H+1 (overrides the scene)")
-    f.add_argument("--method", choices=METHODS, default="full", help="model reduction (default: full order)")
+    f.add_argument("--method", choices=METHODS,
+                   help="model reduction (default: the scene's [reduction] method, else full order)")
     _rom_args(f)
     f.add_argument("--offline", choices=("replicated", "distributed"), default="replicated",
                    help="penalty on a continuum scene: replicated (default: every MPI rank holds K, M and the basis) "
@@ -340,7 +353,8 @@ def build_parser() -> argparse.ArgumentParser:
                     "omega, method, H, N); writes the whole branch into --out (default DIR)")
     fo.add_argument("--harmonics", type=int, help="number of harmonics H (overrides the scene)")
     fo.add_argument("--samples", type=int, help="AFT time samples N >= 2H+1 (overrides the scene)")
-    fo.add_argument("--method", choices=METHODS, default="full", help="model reduction (default: full order)")
+    fo.add_argument("--method", choices=METHODS,
+                   help="model reduction (default: the scene's [reduction] method, else full order)")
     _rom_args(fo)
     fo.add_argument("--quiet", action="store_true")
     _set_arg(fo)
@@ -352,8 +366,9 @@ def build_parser() -> argparse.ArgumentParser:
     nm.add_argument("--frf", metavar="DIR", help="a `jointfem frf` result folder to overlay on the synthesised FRF")
     nm.add_argument("--harmonics", type=int, help="number of harmonics H (overrides the scene)")
     nm.add_argument("--samples", type=int, help="AFT time samples N >= 2H+1 (overrides the scene)")
-    nm.add_argument("--method", choices=METHODS, default="full",
-                    help="model reduction (default: full order; exact: the condensation on the gaps, the same "
+    nm.add_argument("--method", choices=METHODS,
+                    help="model reduction (default: the scene's [reduction] method, else full order; exact: the "
+                         "condensation on the gaps, the same "
                          "backbone as full order)")
     _rom_args(nm)
     nm.add_argument("--quiet", action="store_true")
@@ -381,10 +396,12 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--methods", default=None,
                    help=f"comma-separated name[:modes[:tvd[:kind]]] (default {defaults.COMPARE_METHODS}, less the "
                         f"substructure methods on a model that defines no substructures)")
-    c.add_argument("--modes", type=int, default=defaults.ROM_MODES,
-                   help=f"default modes for methods given without ({defaults.ROM_MODES})")
-    c.add_argument("--tvd", type=int, default=defaults.ROM_TVD,
-                   help=f"default TVDs for methods given without ({defaults.ROM_TVD})")
+    c.add_argument("--modes", type=int,
+                   help=f"default modes for methods given without (the scene's [reduction] modes, else "
+                        f"{defaults.ROM_MODES})")
+    c.add_argument("--tvd", type=int,
+                   help=f"default TVDs for methods given without (the scene's [reduction] tvd, else "
+                        f"{defaults.ROM_TVD})")
     _tvd_kind_arg(c)
     c.add_argument("--output", help="output DOF the errors are measured on (default: the scene's first)")
     c.add_argument("--analysis", choices=("frf", "nma"), default="frf",

@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from .continuation.arclength import ContinuationOptions, NewtonOptions
-from .defaults import default_samples
+from .defaults import ROM_MODES, ROM_TVD, default_samples
 from .models.beam2d import Beam2DSpec
 from .models.beam2d import dof_names as beam_dof_names
 from .models.beam2d import resolve_dof
@@ -92,6 +92,17 @@ class NmaSpec:
 
 
 @dataclass(frozen=True)
+class ReductionSpec:
+    """The [reduction] table: the model reduction a command uses when its --method (--modes,
+    --tvd, --tvd-kind) is not given."""
+
+    method: str = "full"  # one of rom.METHODS; "full": no reduction
+    modes: int = ROM_MODES
+    tvd: int = ROM_TVD
+    tvd_kind: str = "eigen"
+
+
+@dataclass(frozen=True)
 class Scene:
     path: Path
     kind: str
@@ -100,6 +111,7 @@ class Scene:
     model: Any  # LumpedSpec | Beam2DSpec | ContinuumSpec
     data: dict  # the parsed TOML, for the record
     nma: NmaSpec | None = None  # the [nma] table, where the scene has one
+    reduction: ReductionSpec = ReductionSpec()  # the [reduction] table (full order without one)
 
 
 _REQUIRED = object()
@@ -281,6 +293,17 @@ def _nma(t: _Table) -> NmaSpec:
         t.fail("amplitude_range", rng, "must lie between 1e-30 and 1e30 m")
     spec = NmaSpec((lo, hi), mode=t.integer("mode", 1, ge=1), output=t.string("output", None),
                    self_excitation=t.string("self_excitation", "all", choices=("all", "fundamental")))
+    t.done()
+    return spec
+
+
+def _reduction(t: _Table) -> ReductionSpec:
+    from .rom.cms import TVD_KINDS
+    from .rom.reductors import METHODS
+
+    spec = ReductionSpec(method=t.string("method", "full", choices=METHODS),
+                         modes=t.integer("modes", ROM_MODES, ge=0), tvd=t.integer("tvd", ROM_TVD, ge=0),
+                         tvd_kind=t.string("tvd_kind", "eigen", choices=TVD_KINDS))
     t.done()
     return spec
 
@@ -795,10 +818,11 @@ def parse_scene(data: dict, path="<scene>") -> Scene:
     else:
         model = _continuum(top, kind, path)
     nma = _nma(top.table("nma")) if top.has("nma") else None
+    reduction = _reduction(top.table("reduction")) if top.has("reduction") else ReductionSpec()
     top.done()
     if solver.aft == "events":
         _check_events(path, kind, model)
-    return Scene(Path(str(path)), kind, name, solver, model, data, nma)
+    return Scene(Path(str(path)), kind, name, solver, model, data, nma, reduction)
 
 
 def _check_events(path, kind: str, model) -> None:

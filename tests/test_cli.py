@@ -526,3 +526,38 @@ def test_compare_with_the_default_methods_runs_on_a_lumped_model(tmp_path, capsy
     assert rows[:4] == ["method", "full", "tvd:1", "penalty:1"]
     assert cli.main(["compare", scene, "--methods", "cb", "--out", str(tmp_path / "cb"), "--quiet"]) == 2
     assert "cb: the model (lumped) defines no substructures" in capsys.readouterr().err
+
+
+def test_a_scene_names_its_reduction_and_the_flags_override_it(tmp_path, capsys):
+    """Issue 46, item 6: a scene could not name its method (``--method`` on every command line, so
+    a scene whose answer needs the exact condensation could not be run as written).  The
+    [reduction] table is what ``--method``, ``--modes``, ``--tvd`` and ``--tvd-kind`` default to;
+    each flag given still wins.  The exact condensation solves full order's equations, so the two
+    peaks agree to the Newton tolerance."""
+    from jointfem import app, cli
+    from jointfem.rom import RomOptions
+    from jointfem.scene import load_scene
+
+    path = tmp_path / "sdof_exact.toml"
+    path.write_text((ROOT / "demos" / "sdof_jenkins.toml").read_text() + '\n[reduction]\nmethod = "exact"\n')
+    peaks = {}
+    for flags, method in (([], "exact"), (["--method", "full"], "full")):
+        out = tmp_path / method
+        assert cli.main(["frf", str(path), "--out", str(out), "--harmonics", "5", "--samples", "128", "--quiet",
+                         "--stability", "off", *flags]) == 0, capsys.readouterr().err
+        s = json.loads((out / "summary.json").read_text())
+        assert s["method"] == method
+        peaks[method] = s["peaks"]["m.x"]
+    assert abs(peaks["exact"]["amp1_m"] / peaks["full"]["amp1_m"] - 1) < 1e-8
+    assert abs(peaks["exact"]["omega_rad_s"] / peaks["full"]["omega_rad_s"] - 1) < 1e-8
+    # modes, tvd and tvd_kind: the scene's where no flag is given (the library's solve_scene too)
+    path.write_text(path.read_text().replace('method = "exact"', 'method = "penalty"\nmodes = 3\ntvd = 1\n'
+                                                                 'tvd_kind = "eq12"'))
+    scene = load_scene(path)
+    args = cli.build_parser().parse_args(["frf", str(path)])
+    opts = cli._rom_options(args, scene)
+    assert (opts.modes, opts.tvd, opts.tvd_kind) == (3, 1, "eq12")
+    assert app.reduction_of(scene) == ("penalty", RomOptions(modes=3, tvd=1, tvd_kind="eq12"))
+    args = cli.build_parser().parse_args(["frf", str(path), "--modes", "5", "--tvd-kind", "eigen"])
+    opts = cli._rom_options(args, scene)
+    assert (opts.modes, opts.tvd, opts.tvd_kind) == (5, 1, "eigen")
