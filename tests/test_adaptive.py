@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from conftest import sdof
-from jointfem.analysis.adaptive import HarmonicAdaptation, resize, share_at
+from jointfem.analysis.adaptive import HarmonicAdaptation, branch_distance, resize, share_at
 from jointfem.analysis.convergence import amplitude_and_rms, top_harmonic_share
 from jointfem.analysis.frf import SweepOptions, compute_frf, create_problem
 from jointfem.analysis.peaks import output_signal
@@ -43,6 +43,28 @@ def test_resize_and_the_predicted_estimate_agree_with_the_estimate_at_that_h():
     assert share_at(contact, h, 9) == pytest.approx(top_harmonic_share(contact, h), rel=1e-14)
     e5, e7 = share_at(contact, h, 5), share_at(contact, h, 7)
     assert e5 > e7 > share_at(contact, h, 9) > 0 and share_at(contact, h, 2) == 1.0
+
+
+def test_the_check_measures_the_distance_between_the_branches_not_the_change_at_one_omega():
+    """branch_distance, in units of (omega, amplitude) = (1, 1): on a flat stretch it is the change
+    of the amplitude; on a stretch that rises steeply or turns (a fold) a branch at more harmonics
+    displaced along it is at distance 0, and one displaced across it at its offset, whatever the
+    change at one omega.  Without the point before, the plain distance between the points."""
+    units = (1.0, 1.0)
+    # flat: along omega; up 0.3 above p at another omega
+    assert branch_distance((10.0, 1.0), (10.4, 1.3), units, (9.0, 1.0)) == pytest.approx(0.3, abs=1e-15)
+    # a fold: the branch at H runs straight up in amplitude at omega = 10; the branch at H + 2 found
+    # 5 higher on the same line is on it (a change of 5 in amplitude at one omega, distance 0), and
+    # one at omega 10.2 is 0.2 from it
+    assert branch_distance((10.0, 1.0), (10.0, 6.0), units, (10.0, 0.0)) == pytest.approx(0.0, abs=1e-15)
+    assert branch_distance((10.0, 1.0), (10.2, 6.0), units, (10.0, 0.0)) == pytest.approx(0.2, abs=1e-15)
+    # a slope of 45 degrees: a shift of (1, 1) lies along it, (1, -1) across it by sqrt(2)
+    assert branch_distance((1.0, 1.0), (2.0, 2.0), units, (0.0, 0.0)) == pytest.approx(0.0, abs=1e-15)
+    assert branch_distance((1.0, 1.0), (2.0, 0.0), units, (0.0, 0.0)) == pytest.approx(np.sqrt(2.0), rel=1e-15)
+    # the units: omega in 0.5, amplitude in 2 (the flat case again: 0.3 / 2)
+    assert branch_distance((10.0, 1.0), (10.4, 1.3), (0.5, 2.0), (9.0, 1.0)) == pytest.approx(0.15, abs=1e-15)
+    assert branch_distance((10.0, 1.0), (10.3, 1.4), units) == pytest.approx(0.5, rel=1e-15)
+    assert branch_distance((10.0, 1.0), (10.3, 1.4), units, (10.0, 1.0)) == pytest.approx(0.5, rel=1e-15)
 
 
 def test_auto_follows_the_branch_at_the_h_each_stretch_needs(tmp_path):
@@ -110,7 +132,9 @@ def test_auto_follows_the_branch_at_the_h_each_stretch_needs(tmp_path):
     branch = load_branch(tmp_path / "out" / "branch.npz")
     assert np.array_equal(branch["harmonics"], H)
     # per point, the change of the amplitude at H + 2 where checked (the error bars of frf.png):
-    # not on the stuck points (estimate 0), and within amplitude_tol of the largest amplitude
+    # not on the stuck points (estimate 0), and within amplitude_tol of the largest amplitude (the
+    # check bounds the distance between the branches; on these flanks, never steep enough for a
+    # shift in omega to pass for a change, that bounds the change too)
     change = branch["amplitude_change_m"]
     assert change.shape == (frf.num_points, 1) and np.isnan(change[stuck]).all()
     checked = np.isfinite(change[:, 0])

@@ -13,9 +13,12 @@ points (an adaptive harmonic balance in the sense of Jaumouille, Sinou and Petit
   forces' share in the two highest retained harmonics) is compared with the target; where it
   passes it, H rises;
 * e does not measure the response's error (it reads 0.006 at the beam's H = 5 peak, 5.1 % low), so
-  every point whose e passes ``check_share`` of the target is also solved at H + step, and where an
-  output's first-harmonic amplitude or RMS changes by more than ``tol`` of the branch's largest
-  amplitude so far, H rises to that solution;
+  every point whose e passes ``check_share`` of the target is also solved at H + step, and where
+  that solution lies further from the branch at H than ``tol`` of the branch's largest amplitude
+  (in each output's first-harmonic amplitude and RMS) or ``omega_tol`` of omega (branch_distance),
+  H rises to it; where Newton finds no solution at H + step from the point, it is tried once more
+  from the last point checked, moved along the branch by the step since (the harmonics above H
+  then start where the branch at H + step has them, not at zero);
 * H rises by solving a point again at the higher H (its coefficients padded with zeros; on the
   hyperplane through it normal to the last secant, so also at a fold), and again until its e meets
   the target.  The point is the last one, or, where Newton finds no solution from it or it lies past
@@ -70,10 +73,14 @@ class HarmonicAdaptation:
     lower_after: int = 8
     lower_share: float = 0.1
     # the check at H + step of every point whose estimate passes check_share times the target: the
-    # change of each output's first-harmonic amplitude and RMS, over the largest amplitude of the
-    # branch so far, must be at most tol (else H is raised, to the point solved at H + step)
+    # point solved at H + step must lie within tol of the largest amplitude of the branch so far, or
+    # within omega_tol of omega, of the branch at H (branch_distance, each output's first-harmonic
+    # amplitude and RMS; else H is raised, to the point solved at H + step).  A distance, not the
+    # change at one omega: where the branch is steep or folds, a branch at more harmonics beside it
+    # at a shifted omega changes the amplitude at one omega by as much as the slope makes it
     tol: float = 5e-3
     check_share: float = 0.01
+    omega_tol: float = 5e-4  # 0.05 % of omega beside tol = 0.5 % of the amplitude, as for a located peak
 
 
 def resize(x: np.ndarray, q: int, H_to: int) -> np.ndarray:
@@ -108,6 +115,22 @@ def share_at(contact: list[ContactResult], harmonics: Harmonics, H: int, *, top:
     if dyn <= 0.0:
         return 0.0
     return float(np.sqrt(np.sum(F[(orders > H - top) & (orders <= H)] ** 2) / dyn))
+
+
+def branch_distance(p: tuple[float, float], up: tuple[float, float], units: tuple[float, float],
+                    before: tuple[float, float] | None = None) -> float:
+    """How far the point ``up`` = (omega, value) of the branch at more harmonics lies from the branch
+    at H through ``p`` (and ``before``, the point before it): the distance from ``up`` to the line
+    through p along the secant from before, omega and the value each in its ``units``; without
+    ``before``, from ``up`` to p.  A branch steep in omega or folding is a curve, not a function of
+    omega: where the branch at more harmonics runs beside it at a shifted omega, the change at one
+    omega is as large as the slope makes it, the distance between the curves is not."""
+    dw, dv = (up[0] - p[0]) / units[0], (up[1] - p[1]) / units[1]
+    if before is None:
+        return float(np.hypot(dw, dv))
+    t = ((p[0] - before[0]) / units[0], (p[1] - before[1]) / units[1])
+    n = float(np.hypot(*t))
+    return float(np.hypot(dw, dv)) if n == 0.0 else abs(t[0] * dv - t[1] * dw) / n
 
 
 class _Change(Exception):
@@ -152,6 +175,7 @@ class _Tracer:
         self.check: list[np.ndarray] = []  # per point: (the check, each output's amplitude change)
         self.changes, self.refused = [], []
         self.top: dict = {}  # output -> the largest first-harmonic amplitude on the branch so far
+        self.shadow = None  # (H, the point solved at H + step, the point) of the last check solved
         self.outputs = None
 
     def past(self, p: ContinuationPoint) -> bool:
@@ -162,13 +186,20 @@ class _Tracer:
         return pb.num_coefficients // pb.harmonics.num_hc
 
     def solve_at(self, pt: ContinuationPoint, H: int, before: ContinuationPoint | None, *,
-                 record: bool = True) -> ContinuationPoint | None:
+                 record: bool = True, start: tuple[np.ndarray, float] | None = None) -> ContinuationPoint | None:
         """pt solved at H from its coefficients: on the hyperplane through it normal to the secant
         from ``before`` (so also at a fold), else at its omega; None where Newton fails.  Without
-        ``record`` the point's record (its stability, with it) is left to ``recorded``."""
+        ``record`` the point's record (its stability, with it) is left to ``recorded``.  ``start``:
+        (coefficients at H, omega) to start from instead, the hyperplane through it."""
         pb = self.problem_at(H)
         sc = pb.scales(self.omega_start, self.omega_end)
         x = resize(pt.x, self.q(H), H)
+        if start is not None and before is not None:
+            d_start = (x - resize(before.x, self.q(H), H), pt.lam - before.lam)
+            pt = replace(pt, lam=start[1])
+            x = start[0]
+        else:
+            d_start = None
         adapt = pb.adaptation
         if adapt is not None:
             adapt.restore(adapt.state_of(x))
@@ -179,7 +210,7 @@ class _Tracer:
                                        options=self.options.newton)
                 lam = pt.lam
             else:
-                d = (x - resize(before.x, self.q(H), H), pt.lam - before.lam)
+                d = d_start or (x - resize(before.x, self.q(H), H), pt.lam - before.lam)
                 for _ in range(adapt.max_redo if adapt is not None else 1):
                     y, lam, it, _ = correct(fun, x, pt.lam, d, x_scale=sc.x, lam_scale=self.lam_scale, r_scale=sc.r,
                                             options=self.options.newton,
@@ -212,17 +243,39 @@ class _Tracer:
         return np.concatenate([[worst], np.full(len(self.outputs), np.nan)])
 
     def checked(self, p: ContinuationPoint, H: int, before) -> tuple[np.ndarray, ContinuationPoint | None]:
-        """The check of p (solved at H): the largest change of an output's first-harmonic amplitude
-        or RMS, over the largest amplitude on the branch so far, from p to p solved at H + step
-        (inf where Newton finds none there), followed by each output's change of its first-harmonic
-        amplitude (m), and that point."""
-        H_up = min(H + self.ad.step, self.ad.H_max)
+        """The check of p (solved at H): the largest distance (branch_distance, times tol: in the
+        units of tol) of p solved at H + step from the branch at H, over each output's
+        first-harmonic amplitude and RMS, each over the largest amplitude on the branch so far (inf
+        where Newton finds no solution at H + step), followed by each output's change of its
+        first-harmonic amplitude (m), and that point."""
+        ad = self.ad
+        H_up = min(H + ad.step, ad.H_max)
         up = self.solve_at(p, H_up, before, record=False)  # (a point only checked needs no stability)
+        sh = self.shadow
+        if up is None and before is not None and sh is not None and sh[0] == H and sh[1].x.size == resize(
+                p.x, self.q(H_up), H_up).size:
+            # where the branch at H + step departs from the one at H (the onset of separation, a folded
+            # top) Newton from p with the harmonics above H zero can stall; from the last point checked,
+            # moved by the step of the branch at H since, it starts with those harmonics
+            _, up_then, p_then = sh
+            q_up = self.q(H_up)
+            guess = up_then.x + resize(p.x - resize(p_then.x, self.q(H), H), q_up, H_up)
+            up = self.solve_at(p, H_up, before, record=False, start=(guess, up_then.lam + p.lam - p_then.lam))
+            log.debug("harmonics: check at omega = %.9g from the last checked point: %s", p.lam,
+                      "solved" if up is not None else "no solution")
         if up is None:
             return self.unchecked(np.inf), None
+        self.shadow = (H, up, p)
         now, then = self.signals(p.x, H), self.signals(up.x, H_up)
-        worst = max(max(abs(then[k][0] - now[k][0]), abs(then[k][1] - now[k][1])) / max(self.top[k], 1e-300)
-                    for k in now)
+        prev = None if before is None else self.signals(resize(before.x, self.q(H), H), H)
+        units = (ad.omega_tol * abs(p.lam), 0.0)
+        worst = 0.0
+        for k in now:
+            units = (units[0], ad.tol * max(self.top[k], 1e-300))
+            for j in (0, 1):  # first-harmonic amplitude, RMS
+                dist = branch_distance((p.lam, now[k][j]), (up.lam, then[k][j]), units,
+                                       None if prev is None else (before.lam, prev[k][j]))
+                worst = max(worst, ad.tol * dist)
         return np.concatenate([[worst], [then[k][0] - now[k][0] for k in self.outputs]]), up
 
     def raised(self, want: int, ready: ContinuationPoint | None) -> ContinuationPoint | None:
