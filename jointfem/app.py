@@ -97,8 +97,10 @@ def override(scene: Scene, assignments: list[str]) -> Scene:
 STABILITY = {"auto": None, "on": True, "off": False}  # --stability
 
 
-def sweep_options(scene: Scene, *, stability: str = "auto") -> SweepOptions:
-    """The scene's [solver] table as the FRF's options; ``stability``: auto, on or off."""
+def sweep_options(scene: Scene, *, stability: str | None = None) -> SweepOptions:
+    """The scene's [solver] table as the FRF's options; ``stability``: auto, on or off (None: the
+    scene's [solver] stability)."""
+    stability = scene.solver.stability if stability is None else stability
     s = scene.solver
     return SweepOptions(
         stability=STABILITY[stability], omega_limits=s.omega_limits, peak_error=s.peak_error,
@@ -312,9 +314,10 @@ def reduction_of(scene: Scene, method: str | None = None,
 
 
 def solve_scene(scene: Scene, *, progress: bool = False, method: str | None = None,
-                rom_options: RomOptions | None = None, stability: str = "auto",
+                rom_options: RomOptions | None = None, stability: str | None = None,
                 keep_incomplete: bool = False, resume: Resume | None = None) -> SceneSolution:
-    """Build the model of a scene (and its ROM) and compute its FRF (``stability``: auto, on, off).
+    """Build the model of a scene (and its ROM) and compute its FRF (``stability``: auto, on, off;
+    None: the scene's [solver] stability).
     ``method``, ``rom_options``: the scene's [reduction] where not given (reduction_of).
 
     A sweep that stops early (a stall, the time limit, Ctrl-C) raises SweepIncomplete, or, with
@@ -732,7 +735,7 @@ def applicable_methods(specs: list, structure: Structure, *, given: bool) -> tup
 
 
 def compare_scene(scene: Scene, methods: str | None, defaults: RomOptions, *, out: Path, output: str | None = None,
-                  reference: str = "full", progress=None, stability: str = "auto") -> str:
+                  reference: str = "full", progress=None, stability: str | None = None) -> str:
     """Every ROM of ``methods`` (comma-separated name[:modes[:tvd]]) against the reference on one
     scene: writes compare.csv, compare.md, compare_frf.png and compare_pareto.png into ``out``, and
     returns the Markdown."""

@@ -304,8 +304,9 @@ def _harmonics_arg(text: str) -> int | str:
 
 
 def _stability_arg(p) -> None:
-    p.add_argument("--stability", choices=("auto", "on", "off"), default="auto",
-                   help="Floquet exponents of every point (Hill's method): auto (default) computes them wherever "
+    p.add_argument("--stability", choices=("auto", "on", "off"),
+                   help="Floquet exponents of every point (Hill's method; default: the scene's [solver] stability, "
+                        "else auto): auto computes them wherever "
                         "the method has Hill matrices, at any size, but for the exact condensation (whose Hill "
                         "problem is the full model's); on computes them there too; off skips them")
 

@@ -49,8 +49,8 @@ class SolverSpec:
     harmonics_auto: bool = False
     harmonic_target: float = 0.05
     harmonics_max: int = 25
-    # harmonics = "auto": the largest change of an output's first-harmonic amplitude or RMS, over the
-    # branch's largest amplitude so far, that a point may show when solved at H + 2 (analysis.adaptive)
+    # harmonics = "auto": how far, over the branch's largest amplitude so far, a point solved at H + 2
+    # may lie from the branch at H (analysis.adaptive.branch_distance)
     amplitude_tol: float = 5e-3
     samples_given: bool = True
     # the continuation's own defaults (defined once, in jointfem.continuation.arclength)
@@ -69,6 +69,8 @@ class SolverSpec:
     omega_limits: tuple[float, float] | None = None
     # each located peak's truncation error, by the same peak at (3H, 2N) (analysis.frf.SweepOptions)
     peak_error: bool = False
+    # every point's Floquet exponents: "auto", "on" or "off" (--stability, which overrides it)
+    stability: str = "auto"
 
     @property
     def omega_start(self) -> float:
@@ -272,7 +274,8 @@ def _solver(t: _Table) -> SolverSpec:
         kink_tol=t.number("kink_tol", SolverSpec.kink_tol, gt=0),
         time_limit=t.number("time_limit", SolverSpec.time_limit, gt=0), harmonics_auto=auto, harmonic_target=target,
         harmonics_max=H_max, amplitude_tol=amp_tol, samples_given=t.has("samples"), aft=t.string("aft", "sampled", choices=AFT_KINDS),
-        omega_limits=limits, peak_error=t.boolean("peak_error", False))
+        omega_limits=limits, peak_error=t.boolean("peak_error", False),
+        stability=t.string("stability", "auto", choices=("auto", "on", "off")))
     if spec.kink_tol > 1e-3:
         t.fail("kink_tol", spec.kink_tol, "must be <= 1e-3 (a residual of 0.1 % of the force)")
     if not spec.ds_min <= spec.ds0 <= spec.ds_max:

@@ -529,7 +529,7 @@ def test_compare_with_the_default_methods_runs_on_a_lumped_model(tmp_path, capsy
 
 
 def test_a_scene_names_its_reduction_and_the_flags_override_it(tmp_path, capsys):
-    """Issue 46, item 6: a scene could not name its method (``--method`` on every command line, so
+    """Issue 46, item 6: a scene could not name its method or its stability (flags on every command line, so
     a scene whose answer needs the exact condensation could not be run as written).  The
     [reduction] table is what ``--method``, ``--modes``, ``--tvd`` and ``--tvd-kind`` default to;
     each flag given still wins.  The exact condensation solves full order's equations, so the two
@@ -539,14 +539,18 @@ def test_a_scene_names_its_reduction_and_the_flags_override_it(tmp_path, capsys)
     from jointfem.scene import load_scene
 
     path = tmp_path / "sdof_exact.toml"
-    path.write_text((ROOT / "demos" / "sdof_jenkins.toml").read_text() + '\n[reduction]\nmethod = "exact"\n')
+    text = (ROOT / "demos" / "sdof_jenkins.toml").read_text()
+    path.write_text(text.replace("harmonics = 7", 'harmonics = 7\nstability = "on"') +
+                    '\n[reduction]\nmethod = "exact"\n')
     peaks = {}
-    for flags, method in (([], "exact"), (["--method", "full"], "full")):
+    # the scene's [solver] stability too: "on" computes the exact condensation's, which "auto" does not
+    for flags, method, stability in (([], "exact", "computed"), (["--method", "full", "--stability", "off"], "full",
+                                                                   "not computed (stability off)")):
         out = tmp_path / method
         assert cli.main(["frf", str(path), "--out", str(out), "--harmonics", "5", "--samples", "128", "--quiet",
-                         "--stability", "off", *flags]) == 0, capsys.readouterr().err
+                         *flags]) == 0, capsys.readouterr().err
         s = json.loads((out / "summary.json").read_text())
-        assert s["method"] == method
+        assert s["method"] == method and s["stability"]["status"].startswith(stability), s["stability"]
         peaks[method] = s["peaks"]["m.x"]
     assert abs(peaks["exact"]["amp1_m"] / peaks["full"]["amp1_m"] - 1) < 1e-8
     assert abs(peaks["exact"]["omega_rad_s"] / peaks["full"]["omega_rad_s"] - 1) < 1e-8

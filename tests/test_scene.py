@@ -48,6 +48,7 @@ BAD = {
     "jenkins dof axis": (SDOF.replace('between = ["m", "ground"]\ntangential = ["x"]',
                                       'between = ["m.x", "ground"]\ntangential = ["y"]'),
                          "jenkins[0].between", "['m.x', 'ground']"),
+    "stability": (SDOF.replace("harmonics = 7", 'harmonics = 7\nstability = "yes"'), "solver.stability", "yes"),
     "reduction method": (SDOF + '\n[reduction]\nmethod = "guyan"\n', "reduction.method", "guyan"),
     "reduction modes < 0": (SDOF + '\n[reduction]\nmodes = -1\n', "reduction.modes", "-1"),
     "reduction tvd_kind": (SDOF + '\n[reduction]\ntvd_kind = "exact"\n', "reduction.tvd_kind", "exact"),
