@@ -338,7 +338,7 @@ def solve_scene(scene: Scene, *, progress: bool = False, method: str | None = No
     check_time(scene, structure if rom is None else rom, largest_harmonics(scene), s.omega_start)
     opts = sweep_options(scene, stability=stability)
     bar = None
-    callback = None
+    callback = stability_progress = None
     if progress:
         from tqdm import tqdm
 
@@ -370,10 +370,19 @@ def solve_scene(scene: Scene, *, progress: bool = False, method: str | None = No
                 bar.refresh()
                 count[1] = now
 
+        def stability_progress(done, total):
+            # an auto sweep's exponents are made once its branch is traced (minutes at large H):
+            # the same bar, now counting points
+            if done == 0:
+                bar.set_description_str(f"{scene.name} stability", refresh=False)
+                bar.bar_format = "{desc}: {percentage:3.0f}%|{bar}| {n}/{total} points [{elapsed}<{remaining}]"
+                bar.reset(total=total)
+            bar.update(done - bar.n)
+
     model = structure if rom is None else rom
     incomplete = None
     try:
-        frf = compute_frf(model, opts, callback=callback, resume=resume)
+        frf = compute_frf(model, opts, callback=callback, resume=resume, stability_progress=stability_progress)
     except SweepIncomplete as exc:
         if not keep_incomplete:
             raise

@@ -67,7 +67,7 @@ def test_the_check_measures_the_distance_between_the_branches_not_the_change_at_
     assert branch_distance((10.0, 1.0), (10.3, 1.4), units, (10.0, 1.0)) == pytest.approx(0.5, rel=1e-15)
 
 
-def test_auto_follows_the_branch_at_the_h_each_stretch_needs(tmp_path):
+def test_auto_follows_the_branch_at_the_h_each_stretch_needs(tmp_path, capsys):
     """The SDOF Jenkins oscillator at F = 0.5 swept from the stuck flank: the stuck points stay at the
     starting H = 3 (their contact force is linear: estimate 0), H rises where slip begins, every
     point meets the target, each is a solution at its own H, and the located peak (first harmonic
@@ -93,13 +93,17 @@ def test_auto_follows_the_branch_at_the_h_each_stretch_needs(tmp_path):
 
     stability.ExponentTracker.__call__ = counted
     try:
-        sol = solve_scene(scene)
+        sol = solve_scene(scene, progress=True)
     finally:
         stability.ExponentTracker.__call__ = tracked
     frf = sol.frf
     # the exponents of the final points only, once each (not of the points solved at an H that was
     # then raised, nor of those solved to lift the branch), each at its own H (below)
     assert frf.info["stability"] == "computed" and len(calls) == frf.num_points
+    # and the progress bar counts them once the branch is traced (it sat at 100 % of omega for the
+    # minutes the beam's exponents take, issue 50 item 7)
+    bar = capsys.readouterr().err.replace("\r", "\n")
+    assert f"{scene.name} stability: 100%" in bar and f"{frf.num_points}/{frf.num_points} points" in bar
     H = frf.info["arrays"]["harmonics"]
     he = frf.info["arrays"]["harmonic_error"]
     ad = frf.info["harmonics_adaptive"]

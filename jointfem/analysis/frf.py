@@ -55,22 +55,27 @@ class SweepOptions:
     harmonic_adaptation: HarmonicAdaptation | None = None
 
 
-def _stability_of(points, H_of, problem_at, tracker_of, stopped):
+def _stability_of(points, H_of, problem_at, tracker_of, stopped, progress=None):
     """The Floquet exponents of an auto sweep's final points, each in the problem of its own H, in
     the branch's order (each H's ExponentTracker warm from its previous point).  Computed once the
     branch is traced, not as each point is accepted: a point solved at an H that is then raised, or
     only to lift the branch, is dropped (on the beam at 3 N, exact condensation, each accepted point
     having its exponents made stability cost 3.5 times the sweep; docs/theory.md).  Ctrl-C here
-    leaves the rest without exponents and the sweep interrupted: its points are kept."""
+    leaves the rest without exponents and the sweep interrupted: its points are kept.
+    ``progress(done, total)`` after each point's exponents."""
     out = []
     try:
         for p, H in zip(points, H_of):
+            if progress is not None:
+                progress(len(out), len(points))
             pb = problem_at(int(H))
             x = resize(p.x, pb.num_coefficients // pb.harmonics.num_hc, int(H))
             if pb.adaptation is not None:
                 pb.adaptation.restore(pb.adaptation.state_of(x))
             ev = pb.evaluate(x, p.lam, jacobian=True)
             out.append(replace(p, extra=replace(p.extra, stability=tracker_of(pb)(x, p.lam, ev))))
+        if progress is not None:
+            progress(len(out), len(points))
     except KeyboardInterrupt:
         log.warning("stability interrupted (Ctrl-C): %d of %d points have their exponents", len(out), len(points))
         if stopped is None:
@@ -160,9 +165,12 @@ def default_omega_limits(omega_min: float, omega_max: float) -> tuple[float, flo
 @with_sweep_blas
 def compute_frf(model: Structure | Reduction, options: SweepOptions, *,
                 callback: Callable[[ContinuationPoint], None] | None = None,
-                resume: Resume | None = None) -> FrequencyResponse:
+                resume: Resume | None = None,
+                stability_progress: Callable[[int, int], None] | None = None) -> FrequencyResponse:
     """Nonlinear FRF from the stuck linear solution at omega_start.
 
+    ``callback(point)`` per accepted point; ``stability_progress(done, total)`` as an auto sweep's
+    stability is made, once its branch is traced (points with exponents, of the branch's).
     ``model``: a Structure (full order), or what jointfem.rom.build_rom returns (a Galerkin ROM:
     CMS or tvd; the penalty ROM; the exact condensation on the contact gaps).
     ``resume``: go on with a branch that stopped, from its last point, with the step it would have
@@ -274,7 +282,8 @@ def compute_frf(model: Structure | Reduction, options: SweepOptions, *,
             raise adaptive.stopped
         points, stopped, steps = adaptive.points, adaptive.stopped, adaptive.stats
         if stability:
-            points, stopped = _stability_of(points, adaptive.H_of, problem_at, tracker_of, stopped)
+            points, stopped = _stability_of(points, adaptive.H_of, problem_at, tracker_of, stopped,
+                                            stability_progress)
         # the branch's points are at its largest H: so are its peaks, layout and result
         problem = problem_at(adaptive.H_top)
         h, nh = problem.harmonics, problem.harmonics.num_hc
