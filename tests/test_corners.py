@@ -198,7 +198,7 @@ def lap_scene(name, force, N, **sets):
 # a test run, same peak as N = 4096 to 1e-5) is in the benchmark only.
 # (The N = 128 sweeps are not run here: in a full test run the 5 N one was still going after
 # 15 minutes, inside a corner step, where alone it took 100 s and under pytest alone 392 s beside
-# another run; not diagnosed: another path, from round-off or from state an earlier test left.)
+# another run: BLAS's and numba's threads oversubscribing the cores, docs/theory.md, Known limits.)
 LAPS = [("lap3d", 3.0, "penalty", 256, {"mesh__size": 0.03}), ("lap3d", 3.0, "exact", 256, {"mesh__size": 0.03}),
         ("lap2d", 3.0, "full", 256, {"mesh__size": 0.03})]
 
