@@ -21,14 +21,18 @@ copy at 173 - 265i) and is an artefact of the truncation.  The solution is stabl
 real part is below STABILITY_RTOL omega: a fold puts a real exponent through zero.
 
 The dense eigenproblem costs (2 n (2H+1))^3: 3 s for the beam's 1320 unknowns (H = 5), minutes at
-H = 21.  Above ``DENSE_LIMIT`` first-order unknowns, only the exponents nearest a small real shift sigma are
-computed, by shift-invert Arnoldi (ARPACK through scipy) on the same first-order pencil, with one
-factorisation of J + sigma Delta1 + sigma^2 Delta2 (sparse or dense, as J is).  That is enough for the
-verdict: every copy s + i k omega of an exponent has its real part, and a copy lies in the strip
-|Im s| <= omega / 2, so an exponent with |Re s| < omega (any that can decide stability) has a copy
-within omega * sqrt(5) / 2 < 1.2 omega of sigma; the count asked for grows until the farthest one
-returned lies beyond that radius (``exponents_near``).  The highly damped high modes, far to the left, are left out:
-they do not change the largest real part.
+H = 21.  Above ``DENSE_LIMIT`` first-order unknowns, only the exponents nearest a real shift
+sigma = omega / 2 are computed, by shift-invert Arnoldi (ARPACK through scipy) on the same
+first-order pencil, with one factorisation of J + sigma Delta1 + sigma^2 Delta2 (sparse or dense, as
+J is).  That is enough for the verdict: every copy s + i k omega of an exponent has its real part,
+and a copy lies in the strip |Im s| <= omega / 2, so an exponent with -0.059 omega <= Re s <=
+1.059 omega has a copy within RADIUS = 0.75 omega of sigma; the count asked for grows until the
+farthest one returned lies beyond that radius (``exponents_near``).  The shift lies right of the
+imaginary axis because what decides stability lies there: a shift near zero with a radius of
+1.2 omega (covering |Re s| < omega) also had to take the copies of every damped high mode up to
+about 18 omega (on the beam at H = 35, 54 eigenvalues and a Krylov space of 171 vectors a point),
+whose real parts lie far to the left.  A point whose exponents all lie left of -0.059 omega is
+stable, and its leading exponent is the largest of those found nearest sigma (at least FIRST).
 """
 from __future__ import annotations
 
@@ -47,7 +51,8 @@ STABILITY_RTOL = 1e-7  # stable when max Re s <= STABILITY_RTOL * omega (Hill's 
 # Arnoldi's exponent and 1e-10 at the dense one: the dense eigenvalues of the first-order matrix
 # carry round-off of its norm, which the penalty stiffness makes large
 DENSE_LIMIT = 200
-SHIFT = 1e-3  # sigma / omega: keeps the factorised matrix regular where J is singular (at a fold)
+SHIFT = 0.5  # sigma / omega (right of the axis, where a lost stability is; J itself is singular at a fold)
+RADIUS = 0.75  # omega: around sigma, every exponent with -0.059 omega <= Re s <= 1.059 omega has a copy
 ARNOLDI_TOL = 1e-9  # ARPACK's relative tolerance on mu = 1 / (s - sigma) (arnoldi_near)
 NCV_FACTOR = 2.5  # ARPACK's Krylov space over the count of eigenvalues asked (arnoldi_near)
 FIRST = 24  # eigenvalues Arnoldi asks for first at a branch's first point (arnoldi_near)
@@ -120,13 +125,13 @@ def _leading(problem, x, lam, evaluation, dense, first):
     return complex(s[k].real, abs(s[k].imag)), needed  # of a complex pair, the one with Im s > 0
 
 
-def exponents_near(J, d1, d2, omega: float, *, radius: float = 1.2, first: int = 24) -> np.ndarray:
+def exponents_near(J, d1, d2, omega: float, *, radius: float = RADIUS, first: int = 24) -> np.ndarray:
     """The Floquet exponents (1/s) of (J + s d1 + s^2 d2) v = 0 with |Im s| <= omega / 2 among those
     nearest sigma = SHIFT omega, by shift-invert Arnoldi on the first-order pencil (``arnoldi_near``)."""
     return arnoldi_near(J, d1, d2, omega, radius=radius, first=first)[0]
 
 
-def arnoldi_near(J, d1, d2, omega: float, *, radius: float = 1.2, first: int = 24) -> tuple[np.ndarray, int]:
+def arnoldi_near(J, d1, d2, omega: float, *, radius: float = RADIUS, first: int = 24) -> tuple[np.ndarray, int]:
     """``exponents_near`` and how many eigenvalues lay within ``radius`` omega of sigma (what the next
     point of a branch will ask for, ``ExponentTracker``), by shift-invert Arnoldi on
 
@@ -140,7 +145,7 @@ def arnoldi_near(J, d1, d2, omega: float, *, radius: float = 1.2, first: int = 2
     with a copy nearer than that is then among them, each of its copies having the same real part.
 
     ARPACK's tolerance is relative to |mu|, so an exponent's error is about ARNOLDI_TOL |s - sigma|,
-    below 1.2e-9 omega inside the radius: 80 times under STABILITY_RTOL.  Its Krylov space holds
+    below 1e-9 omega inside the radius: 100 times under STABILITY_RTOL.  Its Krylov space holds
     NCV_FACTOR times the eigenvalues asked for (scipy's default is 2).  On 40 points of the beam
     demo's branch, 32 asked at once with this tolerance and space gave the same largest real parts
     (to 5e-12 omega) in 2.7 times less time than 24 then 48 asked, tolerance 1e-12, twice the count."""
