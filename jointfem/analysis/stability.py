@@ -125,13 +125,14 @@ def _leading(problem, x, lam, evaluation, dense, first):
     return complex(s[k].real, abs(s[k].imag)), needed  # of a complex pair, the one with Im s > 0
 
 
-def exponents_near(J, d1, d2, omega: float, *, radius: float = RADIUS, first: int = 24) -> np.ndarray:
+def exponents_near(J, d1, d2, omega: float, *, radius: float | None = None, first: int = 24) -> np.ndarray:
     """The Floquet exponents (1/s) of (J + s d1 + s^2 d2) v = 0 with |Im s| <= omega / 2 among those
     nearest sigma = SHIFT omega, by shift-invert Arnoldi on the first-order pencil (``arnoldi_near``)."""
     return arnoldi_near(J, d1, d2, omega, radius=radius, first=first)[0]
 
 
-def arnoldi_near(J, d1, d2, omega: float, *, radius: float = RADIUS, first: int = 24) -> tuple[np.ndarray, int]:
+def arnoldi_near(J, d1, d2, omega: float, *, radius: float | None = None,
+                 first: int = 24) -> tuple[np.ndarray, int]:
     """``exponents_near`` and how many eigenvalues lay within ``radius`` omega of sigma (what the next
     point of a branch will ask for, ``ExponentTracker``), by shift-invert Arnoldi on
 
@@ -150,6 +151,7 @@ def arnoldi_near(J, d1, d2, omega: float, *, radius: float = RADIUS, first: int 
     demo's branch, 32 asked at once with this tolerance and space gave the same largest real parts
     (to 5e-12 omega) in 2.7 times less time than 24 then 48 asked, tolerance 1e-12, twice the count."""
     n = J.shape[0]
+    radius = RADIUS if radius is None else radius
     sigma = SHIFT * abs(omega)
     sparse = sp.issparse(J)
     d1 = d1.tocsr() if sp.issparse(d1) else sp.csr_matrix(d1)
