@@ -47,13 +47,13 @@ def _count(least: int):
     return parse
 
 
-def _rom_args(parser) -> None:
+def _rom_args(parser, modes: str = "vibration modes of the ROM",
+              tvd: str = "trial-vector derivatives (penalty, tvd)") -> None:
+    """--modes, --tvd and --tvd-kind, each defaulting to the scene's [reduction] key (_rom_options)."""
     parser.add_argument("--modes", type=int,
-                        help=f"vibration modes of the ROM (default: the scene's [reduction] modes, else "
-                             f"{defaults.ROM_MODES})")
+                        help=f"{modes} (default: the scene's [reduction] modes, else {defaults.ROM_MODES})")
     parser.add_argument("--tvd", type=int,
-                        help=f"trial-vector derivatives (penalty, tvd; default: the scene's [reduction] tvd, else "
-                             f"{defaults.ROM_TVD})")
+                        help=f"{tvd} (default: the scene's [reduction] tvd, else {defaults.ROM_TVD})")
     _tvd_kind_arg(parser)
 
 
@@ -397,13 +397,7 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--methods", default=None,
                    help=f"comma-separated name[:modes[:tvd[:kind]]] (default {defaults.COMPARE_METHODS}, less the "
                         f"substructure methods on a model that defines no substructures)")
-    c.add_argument("--modes", type=int,
-                   help=f"default modes for methods given without (the scene's [reduction] modes, else "
-                        f"{defaults.ROM_MODES})")
-    c.add_argument("--tvd", type=int,
-                   help=f"default TVDs for methods given without (the scene's [reduction] tvd, else "
-                        f"{defaults.ROM_TVD})")
-    _tvd_kind_arg(c)
+    _rom_args(c, modes="modes for the methods given without", tvd="TVDs for the methods given without")
     c.add_argument("--output", help="output DOF the errors are measured on (default: the scene's first)")
     c.add_argument("--analysis", choices=("frf", "nma"), default="frf",
                    help="frf (default): forced responses; nma: nonlinear modes of the scene's [nma] table, errors "
