@@ -268,10 +268,10 @@ class _Tracer:
         self.shadow = (H, up, p)
         now, then = self.signals(p.x, H), self.signals(up.x, H_up)
         prev = None if before is None else self.signals(resize(before.x, self.q(H), H), H)
-        units = (ad.omega_tol * abs(p.lam), 0.0)
+        w_unit = ad.omega_tol * abs(p.lam)
         worst = 0.0
         for k in now:
-            units = (units[0], ad.tol * max(self.top[k], 1e-300))
+            units = (w_unit, ad.tol * max(self.top[k], 1e-300))
             for j in (0, 1):  # first-harmonic amplitude, RMS
                 dist = branch_distance((p.lam, now[k][j]), (up.lam, then[k][j]), units,
                                        None if prev is None else (before.lam, prev[k][j]))
