@@ -305,12 +305,17 @@ def _distributed_rom(scene: Scene, method: str, rom_options: RomOptions):
     return ModelSummary(model.num_dofs, int(model.info["num_pairs"]), dict(model.outputs), info), rom
 
 
-def reduction_of(scene: Scene, method: str | None = None,
-                 rom_options: RomOptions | None = None) -> tuple[str, RomOptions]:
-    """The method and options given, else the scene's [reduction] table's (full order without one)."""
+def reduction_of(scene: Scene, method: str | None = None, rom_options: RomOptions | None = None, *,
+                 modes: int | None = None, tvd: int | None = None, tvd_kind: str | None = None,
+                 offline: str = "replicated") -> tuple[str, RomOptions]:
+    """The method and options given (``rom_options`` whole, or ``modes``, ``tvd``, ``tvd_kind`` one
+    by one, as the command line gives them), else the scene's [reduction] table's (full order
+    without one)."""
     red = scene.reduction
-    return (red.method if method is None else method,
-            RomOptions(modes=red.modes, tvd=red.tvd, tvd_kind=red.tvd_kind) if rom_options is None else rom_options)
+    if rom_options is None:
+        rom_options = RomOptions(modes=red.modes if modes is None else modes, tvd=red.tvd if tvd is None else tvd,
+                                 tvd_kind=red.tvd_kind if tvd_kind is None else tvd_kind, offline=offline)
+    return red.method if method is None else method, rom_options
 
 
 def solve_scene(scene: Scene, *, progress: bool = False, method: str | None = None,

@@ -22,16 +22,17 @@ from .rom import METHODS, RomError, RomOptions
 from .scene import SceneError, load_scene
 
 
-def _rom_options(args, scene, *, offline: str = "replicated") -> RomOptions:
-    """The reduction's options: each flag given, else the scene's [reduction] key (the method:
-    ``args.method or scene.reduction.method``)."""
-    red = scene.reduction
-    modes = red.modes if args.modes is None else args.modes
-    tvd = red.tvd if args.tvd is None else args.tvd
-    if modes < 0 or tvd < 0:
-        raise RomError(f"--modes = {modes} and --tvd = {tvd} must be >= 0")
-    return RomOptions(modes=modes, tvd=tvd, tvd_kind=red.tvd_kind if args.tvd_kind is None else args.tvd_kind,
-                      offline=offline)
+def _reduction(args, scene, method: str | None = None, *,
+               offline: str = "replicated") -> tuple[str, RomOptions]:
+    """The method and the reduction's options: each flag given, else the scene's [reduction] key
+    (app.reduction_of)."""
+    from .app import reduction_of
+
+    method, options = reduction_of(scene, method, modes=args.modes, tvd=args.tvd, tvd_kind=args.tvd_kind,
+                                   offline=offline)
+    if options.modes < 0 or options.tvd < 0:
+        raise RomError(f"--modes = {options.modes} and --tvd = {options.tvd} must be >= 0")
+    return method, options
 
 
 def _count(least: int):
@@ -49,7 +50,7 @@ def _count(least: int):
 
 def _rom_args(parser, modes: str = "vibration modes of the ROM",
               tvd: str = "trial-vector derivatives (penalty, tvd)") -> None:
-    """--modes, --tvd and --tvd-kind, each defaulting to the scene's [reduction] key (_rom_options)."""
+    """--modes, --tvd and --tvd-kind, each defaulting to the scene's [reduction] key (_reduction)."""
     parser.add_argument("--modes", type=int,
                         help=f"{modes} (default: the scene's [reduction] modes, else {defaults.ROM_MODES})")
     parser.add_argument("--tvd", type=int,
@@ -75,8 +76,7 @@ def cmd_frf(args) -> int:
     out = Path(args.out) if args.out else Path("results") / scene.name
     t0 = time.perf_counter()
     root = parallel.is_root()
-    options = _rom_options(args, scene, offline=args.offline)
-    method = args.method or scene.reduction.method
+    method, options = _reduction(args, scene, args.method, offline=args.offline)
     resume = None
     if args.resume:
         out = Path(args.out) if args.out else Path(args.resume)
@@ -168,8 +168,7 @@ def cmd_force(args) -> int:
     lo, hi = args.scale
     if not 0 < lo < hi:
         raise SceneError("--scale", "scale", [lo, hi], "must be 0 < start < end")
-    options = _rom_options(args, scene)
-    method = args.method or scene.reduction.method
+    method, options = _reduction(args, scene, args.method)
     resume = None
     if args.resume:
         out = Path(args.out) if args.out else Path(args.resume)
@@ -213,8 +212,7 @@ def cmd_nma(args) -> int:
         raise SceneError("--frf", "frf", args.frf, "is not a result folder of `jointfem frf` (no branch.npz in it)")
     app.nma_options(scene, mode=args.mode)  # a scene without [nma]: one line, before any work
     t0 = time.perf_counter()
-    options = _rom_options(args, scene)
-    method = args.method or scene.reduction.method
+    method, options = _reduction(args, scene, args.method)
     if parallel.is_root():
         app.check_output(out)
     solution = app.solve_nma(scene, method=method, rom_options=options, mode=args.mode,
@@ -264,13 +262,14 @@ def cmd_compare(args) -> int:
         if not args.quiet:
             print(f"jointfem compare: {label} ...", file=sys.stderr, flush=True)
 
+    options = _reduction(args, scene)[1]
     if args.analysis == "nma":
         app.nma_options(scene)  # a scene without [nma]: one line, before any work
         app.check_output(out)
-        md = app.compare_nma_scene(scene, args.methods, _rom_options(args, scene), out=out, reference=args.reference,
+        md = app.compare_nma_scene(scene, args.methods, options, out=out, reference=args.reference,
                                    progress=progress)
     else:
-        md = app.compare_scene(scene, args.methods, _rom_options(args, scene), out=out, output=args.output,
+        md = app.compare_scene(scene, args.methods, options, out=out, output=args.output,
                                reference=args.reference, progress=progress, stability=args.stability)
     if not args.quiet:
         print(md)
