@@ -252,8 +252,7 @@ class _Tracer:
         H_up = min(H + ad.step, ad.H_max)
         up = self.solve_at(p, H_up, before, record=False)  # (a point only checked needs no stability)
         sh = self.shadow
-        if up is None and before is not None and sh is not None and sh[0] == H and sh[1].x.size == resize(
-                p.x, self.q(H_up), H_up).size:
+        if up is None and before is not None and sh is not None and sh[0] == H:
             # where the branch at H + step departs from the one at H (the onset of separation, a folded
             # top) Newton from p with the harmonics above H zero can stall; from the last point checked,
             # moved by the step of the branch at H since, it starts with those harmonics

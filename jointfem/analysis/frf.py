@@ -64,18 +64,18 @@ def _stability_of(points, H_of, problem_at, tracker_of, stopped, progress=None):
     leaves the rest without exponents and the sweep interrupted: its points are kept.
     ``progress(done, total)`` after each point's exponents."""
     out = []
+    if progress is not None:
+        progress(0, len(points))
     try:
         for p, H in zip(points, H_of):
-            if progress is not None:
-                progress(len(out), len(points))
             pb = problem_at(int(H))
             x = resize(p.x, pb.num_coefficients // pb.harmonics.num_hc, int(H))
             if pb.adaptation is not None:
                 pb.adaptation.restore(pb.adaptation.state_of(x))
             ev = pb.evaluate(x, p.lam, jacobian=True)
             out.append(replace(p, extra=replace(p.extra, stability=tracker_of(pb)(x, p.lam, ev))))
-        if progress is not None:
-            progress(len(out), len(points))
+            if progress is not None:
+                progress(len(out), len(points))
     except KeyboardInterrupt:
         log.warning("stability interrupted (Ctrl-C): %d of %d points have their exponents", len(out), len(points))
         if stopped is None:
