@@ -109,13 +109,16 @@ POINTS = [
 
 
 def hbm_point(kind: str, F: float, omega: float, c: float, H: int, N: int):
-    """(problem, U, harmonics, Hill's leading exponent, share of samples in slip) of jointfem's point."""
+    """(problem, U, harmonics, Hill's leading exponent, jointfem's (with the sliders' memory), share
+    of samples in slip) of jointfem's point."""
     h = Harmonics(H, N)
     model = create_lumped(SYSTEMS[kind][0](F, c))
     sol = solve_at(model, omega, h)
     pb = create_problem(model, h)
-    s = leading_exponent(pb, sol.U, omega, pb.evaluate(sol.U, omega, jacobian=True))
-    return pb, sol.U, h, s, float((sol.record.states != 0).mean())
+    ev = pb.evaluate(sol.U, omega, jacobian=True)
+    s = leading_exponent(pb, sol.U, omega, ev, memory=False)
+    s_mem = leading_exponent(pb, sol.U, omega, ev)
+    return pb, sol.U, h, s, s_mem, float((sol.record.states != 0).mean())
 
 
 def hill_fd(pb, U, omega: float, eps: float = 1e-7):
@@ -251,8 +254,8 @@ def memory_hill(orbit: rm.Orbit, H: int, N: int, s0: complex, *, memory: bool = 
 # ---- one point -----------------------------------------------------------------------------
 def evaluate(kind: str, c: float, omega: float, F: float, *, analysis: bool = True) -> dict:
     t = time.perf_counter()
-    pb1, U1, h1, s1, _ = hbm_point(kind, F, omega, c, H1, N1)
-    pb2, U2, h2, s2, share_hbm = hbm_point(kind, F, omega, c, H2, N2)
+    pb1, U1, h1, s1, m1, _ = hbm_point(kind, F, omega, c, H1, N1)
+    pb2, U2, h2, s2, m2, share_hbm = hbm_point(kind, F, omega, c, H2, N2)
     t_hill = time.perf_counter() - t
     t = time.perf_counter()
     orbit = reference_orbit(kind, F, omega, c, U2, h2)
@@ -262,6 +265,7 @@ def evaluate(kind: str, c: float, omega: float, F: float, *, analysis: bool = Tr
     x_hbm = h2.to_time(U2.reshape(h2.num_hc, -1))
     row = dict(system=kind, c=c, omega=omega, F=F, share=float(orbit.slip_share.max()), share_hbm=share_hbm,
                hill1=s1, hill2=s2, mono=mono, rel=(s2.real - mono.real) / abs(mono.real),
+               jf1=m1, jf2=m2, rel_jf=(m2.real - mono.real) / abs(mono.real),
                periodic=orbit.residual, orbit_vs_hbm=float(np.abs(x_ref - x_hbm).max() / np.abs(x_ref).max()),
                t_hill=t_hill, t_mono=t_mono)
     if analysis:
@@ -293,7 +297,7 @@ def search(kind: str, c: float, omega: float, target: float, lo: float, hi: floa
     """The force whose HBM point (H1) slips ``target`` of its samples (bisection on log F)."""
     for _ in range(iters):
         mid = np.sqrt(lo * hi)
-        share = hbm_point(kind, mid, omega, c, H1, N1)[4]
+        share = hbm_point(kind, mid, omega, c, H1, N1)[5]
         lo, hi = (mid, hi) if share < target else (lo, mid)
     return float(np.sqrt(lo * hi))
 
@@ -319,12 +323,14 @@ def report(rows: list[dict], command: str, seconds: float) -> str:
     out = ["# Hill's method against an event-driven monodromy matrix, with slip (issue 46, item 4)", "",
            f"Made by `{command}` on {datetime.date.today().isoformat()}, {model} ({platform.machine()}), "
            f"in {seconds:.0f} s (one process, OPENBLAS_NUM_THREADS={os.environ.get('OPENBLAS_NUM_THREADS', 'unset')}, "
-           "beside a test suite on the machine's 2 cores).", "",
+           "alone on the machine's 2 cores).", "",
            "Systems: `sdof` is tests/conftest.py `sdof(F, c)` (m = k = kt = mu = N0 = 1, slider to ground); "
            "`2-DOF` two unit masses in a chain (k = 1 ground-m1 and m1-m2, dampers c from each mass to "
            "ground, one slider kt = 1 with slip force 1 from m1 to ground, F cos(omega t) on m2; "
-           "`chain2_spec`).  Hill: jointfem's leading exponent (`analysis.stability.leading_exponent`: "
-           "the largest real part in the strip |Im s| <= omega/2) at (H, N) = (15, 1024) and (31, 2048).  "
+           "`chain2_spec`).  Hill: the leading exponent of Hill's matrix as it is, with the AFT's periodic "
+           "contact Jacobian (`analysis.stability.leading_exponent(memory=False)`: the largest real part "
+           "in the strip |Im s| <= omega/2) at (H, N) = (15, 1024) and (31, 2048); what jointfem computed "
+           "until 2026-12-07.  "
            "Monodromy: tests/reference_monodromy.py on the orbit shot from the H = 31 solution, its "
            "physical multipliers (the slider's zero multiplier, or its unit one when stuck all the "
            "period, dropped).  Slip share: the fraction of the period the slider slips, on the "
@@ -335,6 +341,22 @@ def report(rows: list[dict], command: str, seconds: float) -> str:
     for r in rows:
         out.append(f"| {r['system']} | {r['c']} | {r['omega']} | {r['F']:g} | {100 * r['share']:.1f} % | "
                    f"{_c(r['hill1'])} | {_c(r['hill2'])} | {_c(r['mono'])} | {100 * r['rel']:+.1f} % |")
+    out += ["", "## jointfem's exponents, with the sliders' memory", "",
+            "`leading_exponent` as a sweep computes it: Hill's exponents refined by Newton on Hill's "
+            "problem with the contact Jacobian of a perturbation e^(st) v, each stuck force's memory "
+            "weighted by e^(-s tau) (contact/_floquet.py, analysis.stability.with_memory).  rel as above.", "",
+            "| system | c | omega | F | slip share | jointfem H=15 | jointfem H=31 | monodromy | rel | Hill's rel |",
+            "|---|---|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        out.append(f"| {r['system']} | {r['c']} | {r['omega']} | {r['F']:g} | {100 * r['share']:.1f} % | "
+                   f"{_c(r['jf1'])} | {_c(r['jf2'])} | {_c(r['mono'])} | {100 * r['rel_jf']:+.2f} % | "
+                   f"{100 * r['rel']:+.1f} % |")
+    worst = max(rows, key=lambda r: abs(r["rel_jf"]))
+    conv = max(abs(r["jf2"].real - r["jf1"].real) / abs(r["jf2"].real) for r in rows)
+    out += ["", f"Largest |rel|: {100 * abs(worst['rel_jf']):.2f} % ({worst['system']}, omega = {worst['omega']}, "
+            f"F = {worst['F']:g}, {100 * worst['share']:.0f} % slip); H = 15 against H = 31: at most "
+            f"{100 * conv:.2f} %.  The sampled law's switches are first order in the sample spacing "
+            "(the reference locates them exactly)."]
     out += ["", "## Checks of the reference", "",
             "Per point: the orbit's periodicity max|P(y0) - y0| / (1 + max|y0|); its largest distance from "
             "jointfem's H = 31 solution over the period, relative to max |x| (the HBM's truncation and "
@@ -478,10 +500,12 @@ ANALYSIS = """### Analysis
 Hill's method with the AFT's periodic Jacobian gave the right stability verdict at every point
 here (every exponent negative both ways), but not the decay rate once the slider slips over part
 of the period, and above twice a slider-free frequency it returns the slider-free damping -c/2
-(with c = 0 that would be a zero real part).  A fix that these measurements support: the contact
-Jacobian of Hill's problem with the weights e^(-s tau) (the AFT knows the stick onset of every
-sample), solved as a nonlinear eigenproblem from the present exponent; or exponents from a
-monodromy matrix."""
+(with c = 0 that would be a zero real part).  What jointfem does now (first table's second part):
+the contact Jacobian of Hill's problem with the weights e^(-s tau), the sampled law's own
+(contact/_floquet.py: the AFT's tangent recursions, each step back in time weighted by
+e^(-s T / N)), and the exponents by Newton on that nonlinear eigenproblem from Hill's four with the
+largest real parts (analysis.stability.with_memory); a sweep records per point which one it used
+(branch.npz ``floquet_method``)."""
 
 
 def main(argv=None):
@@ -500,7 +524,7 @@ def main(argv=None):
         rows.append(evaluate(kind, c, omega, F))
         r = rows[-1]
         print(f"{kind} c={c} w={omega} F={F}: share {r['share']:.3f} hill {r['hill1']:.5f} {r['hill2']:.5f} "
-              f"mono {r['mono']:.5f} rel {r['rel']:+.3f} fd {r['fd_err']:.1e} memory {r['mem_on']} / {r['mem_off']}",
+              f"jointfem {r['jf2']:.5f} mono {r['mono']:.5f} rel {r['rel']:+.3f} {r['rel_jf']:+.4f} fd {r['fd_err']:.1e} memory {r['mem_on']} / {r['mem_off']}",
               flush=True)
     env = f"OPENBLAS_NUM_THREADS={os.environ['OPENBLAS_NUM_THREADS']} " if "OPENBLAS_NUM_THREADS" in os.environ else ""
     text = report(rows, f"{env}.venv/bin/python benchmarks/slip_stability.py" + (f" --out {args.out}" if args.out else ""),

@@ -3,8 +3,9 @@
     python benchmarks/stability_cost.py demos/beam2d.toml full
     python benchmarks/stability_cost.py demos/lap2d.toml penalty
 
-Runs the scene's sweep four ways, twice each, interleaved so that they share the machine's load:
-stability off; on as the sweep computes it; on with Arnoldi's shift and radius of before 2026-12-07
+Runs the scene's sweep five ways, twice each, interleaved so that they share the machine's load:
+stability off; on as the sweep computes it; on without the contact laws' memory (Hill's matrix as it
+is, before 2026-12-07 evening; the older ways too); on with Arnoldi's shift and radius of before 2026-12-07
 (sigma = 1e-3 omega, radius 1.2 omega); on as it was computed before 2026-12-06 (every point on its
 own: dense up to 1600 first-order unknowns, else Arnoldi asking 24 eigenvalues then twice as many,
 ARPACK tolerance 1e-12, a Krylov space twice the count, the shift and radius of then).  Prints the
@@ -24,24 +25,27 @@ from jointfem.scene import load_scene
 def main():
     scene = load_scene(sys.argv[1])
     method = sys.argv[2] if len(sys.argv) > 2 else "full"
-    now = st.FIRST, st.ARNOLDI_TOL, st.DENSE_LIMIT, st.NCV_FACTOR, st.ExponentTracker.__call__, st.SHIFT, st.RADIUS
+    now = (st.FIRST, st.ARNOLDI_TOL, st.DENSE_LIMIT, st.NCV_FACTOR, st.ExponentTracker.__call__, st.SHIFT, st.RADIUS,
+           st.MEMORY_CANDIDATES)
 
     def old_call(self, x, lam, evaluation):  # every point on its own: dense or not by its size, 24 asked first
-        return st._leading(self.problem, x, lam, evaluation, None, 24)[0]
+        return st._leading(self.problem, x, lam, evaluation, None, 24, False)[::2]
 
-    ways = {"off": now, "on": now, "on, shift of 2026-12-06": now[:5] + (1e-3, 1.2),
-            "on, before 2026-12-06": (24, 1e-12, 1600, 2.0, old_call, 1e-3, 1.2)}
+    ways = {"off": now, "on": now, "on, without the memory": now[:7] + (0,),
+            "on, shift of 2026-12-06": now[:5] + (1e-3, 1.2, 0),
+            "on, before 2026-12-06": (24, 1e-12, 1600, 2.0, old_call, 1e-3, 1.2, 0)}
     online, last = {}, {}
     for rep in range(2):
         for way, settings in ways.items():
             (st.FIRST, st.ARNOLDI_TOL, st.DENSE_LIMIT, st.NCV_FACTOR, st.ExponentTracker.__call__, st.SHIFT,
-             st.RADIUS) = settings
+             st.RADIUS, st.MEMORY_CANDIDATES) = settings
             frf = solve_scene(scene, stability="off" if way == "off" else "on", method=method).frf
             online.setdefault(way, []).append(frf.info["time_online_s"])
             last[way] = frf
             print(f"{rep} stability {way}: online {frf.info['time_online_s']:.1f} s, "
                   f"{frf.omega.size} points, {frf.info['stability']}", flush=True)
-    (st.FIRST, st.ARNOLDI_TOL, st.DENSE_LIMIT, st.NCV_FACTOR, st.ExponentTracker.__call__, st.SHIFT, st.RADIUS) = now
+    (st.FIRST, st.ARNOLDI_TOL, st.DENSE_LIMIT, st.NCV_FACTOR, st.ExponentTracker.__call__, st.SHIFT, st.RADIUS,
+     st.MEMORY_CANDIDATES) = now
     off = np.mean(online["off"])
     print("ratio with/without: " + ", ".join(f"{w} {np.mean(t) / off:.2f}" for w, t in online.items() if w != "off"))
     a = last["on"]

@@ -212,6 +212,9 @@ def save_frf(frf: FrequencyResponse, out: Path, *, summary: dict) -> dict:
                         unstable_by_complex_pair=int(pair.sum()),
                         folds=int(frf.info["arrays"]["fold"].sum()),
                         stability_changes=int(frf.info["arrays"]["stability_change"].sum()))
+            if "floquet_method" in a:  # how many points' exponents carry the contact laws' memory
+                stab["points_by_method"] = {m: int((a["floquet_method"] == m).sum())
+                                            for m in np.unique(a["floquet_method"])}
         summary["stability"] = stab
     atomic_write(out / "summary.json", lambda p: Path(p).write_text(json.dumps(summary, indent=2, default=_json)))
     return summary

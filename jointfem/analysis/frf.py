@@ -73,7 +73,8 @@ def _stability_of(points, H_of, problem_at, tracker_of, stopped, progress=None):
             if pb.adaptation is not None:
                 pb.adaptation.restore(pb.adaptation.state_of(x))
             ev = pb.evaluate(x, p.lam, jacobian=True)
-            out.append(replace(p, extra=replace(p.extra, stability=tracker_of(pb)(x, p.lam, ev))))
+            lead, method = tracker_of(pb)(x, p.lam, ev)
+            out.append(replace(p, extra=replace(p.extra, stability=lead, stability_method=method)))
             if progress is not None:
                 progress(len(out), len(points))
     except KeyboardInterrupt:
@@ -230,7 +231,8 @@ def compute_frf(model: Structure | Reduction, options: SweepOptions, *,
             if adaptation is not None:
                 rec = replace(rec, harmonics_enough=enough_harmonics(ev.contact, hh, adaptation))
             if each_point:
-                rec = replace(rec, stability=exponent(U, omega, ev))
+                lead, method = exponent(U, omega, ev)
+                rec = replace(rec, stability=lead, stability_method=method)
             return rec
 
         recorders[id(pb)] = record
@@ -384,6 +386,9 @@ def compute_frf(model: Structure | Reduction, options: SweepOptions, *,
         # kind), from which the motion may settle on a nearby torus or period-doubled orbit
         # (docs/theory.md, Stability of every point)
         info["arrays"]["floquet_leading_imag"] = lead.imag
+        # per point, how: Hill's matrix as it is ("hill"), or with the contact laws' memory
+        # ("hill-memory": the stuck sliders' e^{-s tau}; docs/theory.md, Stability with slip)
+        info["arrays"]["floquet_method"] = np.array([r.stability_method or "hill" for r in records])
         info["arrays"]["stable"] = stable
         # where the stability changes between two points: a fold (omega turns back) or a bifurcation
         turn = np.zeros(omega.size, bool)

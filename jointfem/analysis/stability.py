@@ -56,6 +56,13 @@ RADIUS = 0.75  # omega: around sigma, every exponent with -0.059 omega <= Re s <
 ARNOLDI_TOL = 1e-9  # ARPACK's relative tolerance on mu = 1 / (s - sigma) (arnoldi_near)
 NCV_FACTOR = 2.5  # ARPACK's Krylov space over the count of eigenvalues asked (arnoldi_near)
 FIRST = 24  # eigenvalues Arnoldi asks for first at a branch's first point (arnoldi_near)
+HILL, HILL_MEMORY = "hill", "hill-memory"  # a point's exponents without, or with, the contact laws' memory
+MEMORY_CANDIDATES = 2  # Hill's exponents (largest real parts) from which the memory's are followed (with_memory)
+MEMORY_TOL = 1e-7  # omega: the last Newton step (on the slip benchmark the roots are then within 2.2e-12 omega of 1e-13)
+MEMORY_SAME = 1e-6  # omega: a Newton this near a root already found is going there
+MEMORY_ITER = 12  # Newton steps (4 to 6 from Hill's exponent where it converges)
+MEMORY_REACH = 1.0  # omega: Hill's exponents with |Re s| beyond it are left as they are
+MEMORY_NONE = 1e-13  # of max |J|: a correction this small is none (no law remembers anything)
 
 
 def floquet_exponents(J, d1, d2, num: int) -> np.ndarray:
@@ -91,24 +98,27 @@ def max_real_part(problem: Problem, x: np.ndarray, lam: float, evaluation: Evalu
 
 
 def leading_exponent(problem: Problem, x: np.ndarray, lam: float, evaluation: Evaluation, *,
-                     dense: bool | None = None) -> complex | None:
+                     dense: bool | None = None, memory: bool = True) -> complex | None:
     """The Floquet exponent (1/s) with the largest real part of the point x at omega = lam, in the
     strip |Im s| <= omega / 2 (real: a fold's kind of loss of stability; a complex pair: a
     Neimark-Sacker or period-doubling kind), or None where the problem offers no Hill matrices or
     says why its exponents are not the physical ones.  ``evaluation``: the problem's at (x, lam),
     with its Jacobian.  ``dense``: every exponent by the dense eigenproblem, or (False) those near
-    zero by shift-invert Arnoldi; by default dense up to DENSE_LIMIT first-order unknowns.  Along a
-    branch, ``ExponentTracker`` gives the same exponents for less."""
-    return _leading(problem, x, lam, evaluation, dense, FIRST)[0]
+    zero by shift-invert Arnoldi; by default dense up to DENSE_LIMIT first-order unknowns.
+    ``memory``: with the contact laws' memory where the problem knows it (``with_memory``), or
+    (False) Hill's matrix as it is.  Along a branch, ``ExponentTracker`` gives the same exponents
+    for less."""
+    return _leading(problem, x, lam, evaluation, dense, FIRST, memory)[0]
 
 
-def _leading(problem, x, lam, evaluation, dense, first):
-    """(leading exponent or None, eigenvalues Arnoldi found within its radius or None)."""
+def _leading(problem, x, lam, evaluation, dense, first, memory=True):
+    """(leading exponent or None, eigenvalues Arnoldi found within its radius or None, the method:
+    HILL or HILL_MEMORY)."""
     if problem.no_stability is not None:
-        return None, None
+        return None, None, HILL
     hill = problem.hill_matrices(x, lam, evaluation)
     if hill is None:
-        return None, None
+        return None, None, HILL
     J, d1, d2, num = hill
     needed = None
     if dense if dense is not None else 2 * J.shape[0] <= DENSE_LIMIT:
@@ -121,8 +131,91 @@ def _leading(problem, x, lam, evaluation, dense, first):
         s = inside if inside.size else s_all[:num]
     else:
         s, needed = arnoldi_near(J, d1, d2, lam, first=first)
+    method = HILL
+    correction = problem.floquet_correction(x, lam, evaluation) if memory else None
+    if correction is not None:
+        refined = with_memory(J, d1, d2, correction, s, lam)
+        if refined is not None:
+            s, method = refined, HILL_MEMORY
     k = int(np.argmax(s.real))
-    return complex(s[k].real, abs(s[k].imag)), needed  # of a complex pair, the one with Im s > 0
+    return complex(s[k].real, abs(s[k].imag)), needed, method  # of a complex pair, the one with Im s > 0
+
+
+def with_memory(J, d1, d2, correction, s_hill: np.ndarray, omega: float) -> np.ndarray | None:
+    """The exponents of Hill's problem with the contact laws' memory, T(s) v = 0 with
+    T(s) = J + s d1 + s^2 d2 + dJ(s) (``Problem.floquet_correction``), each by Newton from one of
+    the MEMORY_CANDIDATES exponents of ``s_hill`` (Hill's, in the strip) with the largest real
+    parts, mapped into the strip; or None where the memory changes nothing (every correction zero)
+    or the Newton from Hill's leading exponent fails (then Hill's own exponents stand, and the point
+    says so).  A later start whose Newton fails has no root near it with the memory (on the SDOF
+    oscillator, Newton on log det T from there lands on the leading root): it is dropped.
+
+    Newton on the bordered system T(s) x = 0, e^H x = 1 (Ruhe's nonlinear inverse iteration):
+    u = T(s)^-1 T'(s) x, s <- s - e^H x / e^H u, x <- u / e^H u, one LU a step, x and e started at
+    Hill's right and left eigenvectors (an inverse iteration on Hill's matrix at its exponent), so
+    that the first step is the first-order perturbation.  A start that comes within MEMORY_SAME
+    omega of a root already found stops there.  On the SDOF and 2-DOF Jenkins oscillators the roots
+    are the exponents of an event-driven monodromy matrix (docs/benchmarks_slip_stability.md)."""
+    Jd, D1, D2 = (np.asarray(a.toarray() if sp.issparse(a) else a, dtype=float) for a in (J, d1, d2))
+    scale = max(np.abs(Jd).max(), 1e-300)
+    reach = MEMORY_REACH * abs(omega)
+    if s_hill.real.max() > reach:
+        return None  # a growth of e^(2 pi) a period or more: no verdict the memory can change
+    order = np.argsort(-s_hill.real, kind="stable")
+    starts: list[complex] = []
+    for z in s_hill[order]:  # one of each complex pair, none damped by more than the reach
+        if len(starts) >= MEMORY_CANDIDATES:
+            break
+        z = complex(z.real, abs(z.imag))
+        if z.real >= -reach and all(abs(z - y) > 1e-9 * abs(omega) for y in starts):
+            starts.append(z)
+    if not starts:
+        return None
+    rng = np.random.default_rng(0)  # a fixed start vector: the same exponents on every run
+    b = rng.standard_normal(Jd.shape[0]) + 1j * rng.standard_normal(Jd.shape[0])
+    half = 0.5 * abs(omega)
+
+    def fold(z: complex) -> complex:
+        return complex(z.real, abs((z.imag + half) % abs(omega) - half))
+
+    def newton(z: complex, dJ, slope, found: list[complex]) -> complex | None:
+        # Hill's eigenvector at its exponent: one inverse iteration on Hill's matrix there (moved
+        # off the exponent by round-off's size, so that the factors stay finite)
+        z1 = z * (1.0 + 1e-12) + 1e-12 * abs(omega)
+        lu = sla.lu_factor(Jd + z1 * D1 + z1 * z1 * D2, check_finite=False)
+        x = sla.lu_solve(lu, b, check_finite=False)
+        left = sla.lu_solve(lu, b, trans=2, check_finite=False)
+        if not (np.all(np.isfinite(x)) and np.all(np.isfinite(left))):
+            return None
+        e = left.conj() / (left.conj() @ x)  # e^H x = 1
+        for _ in range(MEMORY_ITER):
+            lu = sla.lu_factor(Jd + z * D1 + z * z * D2 + dJ, check_finite=False)
+            u = sla.lu_solve(lu, (D1 + 2.0 * z * D2 + slope) @ x, check_finite=False)
+            step = -1.0 / (e @ u)
+            if not np.isfinite(step):
+                return None
+            z += step
+            x = -u * step
+            if abs(step) <= MEMORY_TOL * abs(omega) or any(abs(fold(z) - r) <= MEMORY_SAME * abs(omega)
+                                                           for r in found):
+                return fold(z)  # converged, or on its way to a root already found
+            if abs(z.real) > 4.0 * reach:
+                return None
+            dJ, slope = correction(z)
+        return None
+
+    dJ, slope = correction(starts[0])
+    if np.abs(dJ).max() <= MEMORY_NONE * scale:
+        return None
+    first = newton(starts[0], dJ, slope, [])
+    if first is None:
+        return None
+    out = [first]
+    for start in starts[1:]:  # a start with no root near it (Newton fails) is one the memory removed
+        root = newton(start, *correction(start), out)
+        if root is not None:
+            out.append(root)
+    return np.array(out)
 
 
 def exponents_near(J, d1, d2, omega: float, *, radius: float | None = None, first: int = 24) -> np.ndarray:
@@ -205,15 +298,15 @@ class ExponentTracker:
         self.dense = 2 * problem.hill_size <= DENSE_LIMIT
         self.failures: list[tuple[float, str]] = []  # (omega, what failed)
 
-    def __call__(self, x: np.ndarray, lam: float, evaluation: Evaluation) -> complex | None:
+    def __call__(self, x: np.ndarray, lam: float, evaluation: Evaluation) -> tuple[complex | None, str]:
         try:
-            s, needed = _leading(self.problem, x, lam, evaluation, self.dense, self.first)
+            s, needed, method = _leading(self.problem, x, lam, evaluation, self.dense, self.first)
         except (spla.ArpackNoConvergence, spla.ArpackError, RuntimeError, np.linalg.LinAlgError) as exc:
             self.failures.append((float(lam), f"{type(exc).__name__}: {exc}"))
-            return None
+            return None, HILL
         if needed is not None:
             self.first = max(FIRST, needed + max(8, needed // 4))
-        return s
+        return s, method
 
 
 def in_strip(s: np.ndarray, omega: float) -> np.ndarray:

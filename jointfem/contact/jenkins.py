@@ -50,6 +50,7 @@ import numpy as np
 
 from ..harmonics import Harmonics
 from ._events import MAX_EVENTS, event_kernel, event_tables
+from ._floquet import floquet_kernel
 from ._kernels import aft_kernel, product_table
 from .law import (SEPARATED, SLIP, STATE_NAMES, STICK, ContactError, ContactLaw, ContactResult,  # noqa: F401
                   check_gaps, loop_energy)
@@ -139,6 +140,25 @@ class JenkinsPairs(ContactLaw):
     def aft(self, G: np.ndarray, harmonics: Harmonics, *, jacobian: bool = True) -> ContactResult:
         return compute_aft(self, G, harmonics, jacobian=jacobian)
 
+    def floquet_jacobian(self, result: ContactResult, harmonics: Harmonics, s: complex,
+                         omega: float, *, derivative: bool = False):
+        """The sampled law's contact Jacobian for a perturbation e^{s t} V, the slider's memory
+        weighted by e^{-s tau} (_floquet.py), and with ``derivative`` its derivative in s too;
+        None for the event-accurate law (not written)."""
+        if self.events:
+            return None
+        N, P, m = result.g_t.shape
+        nh = harmonics.num_hc
+        moved = np.any(result.state_t != STICK, axis=0)
+        J = np.zeros((P, nh, m, nh * m), dtype=complex)
+        dJ = np.zeros_like(J)
+        dt = 2.0 * np.pi / (abs(omega) * N)
+        floquet_kernel(np.ascontiguousarray(result.g_t), self.kt, self.kn, self.mu, self.N0, self.num_tangential,
+                       self.has_normal, harmonics.gamma, _complex_analysis(harmonics),
+                       np.ascontiguousarray(result.w_start), moved, np.exp(-complex(s) * dt), dt, J, dJ)
+        J = J.reshape(P, nh, m, nh, m)
+        return (J, dJ.reshape(P, nh, m, nh, m)) if derivative else J
+
     def closed_at_rest(self) -> "JenkinsPairs":
         """Open pairs (N0 < 0) closed at rest with no preload: their stuck springs kt, kn."""
         return self if not self.open.any() else JenkinsPairs(
@@ -204,6 +224,12 @@ class JenkinsPairs(ContactLaw):
         amp = np.linalg.norm(g - g.mean(axis=0), axis=2).max(axis=0)
         normal = f_t[:, :, nt].max(axis=0) if self.has_normal else self.N0.copy()
         return np.column_stack([energy, amp, normal])
+
+
+@lru_cache(maxsize=16)
+def _complex_analysis(harmonics: Harmonics) -> np.ndarray:
+    """gamma_inv as complex (what the Floquet kernel's BLAS product takes)."""
+    return np.ascontiguousarray(harmonics.gamma_inv, dtype=complex)
 
 
 @lru_cache(maxsize=16)

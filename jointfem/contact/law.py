@@ -114,6 +114,18 @@ class ContactLaw(ABC):
     def subset(self, index: np.ndarray) -> "ContactLaw":
         """The same law on the pairs ``index`` only."""
 
+    def floquet_jacobian(self, result: ContactResult, harmonics: Harmonics, s: complex,
+                         omega: float, *, derivative: bool = False):
+        """d F / d V (P, num_hc, m, num_hc, m), complex, of a perturbation e^{s t} V of the gaps
+        about the steady period of ``result`` (at omega): Hill's contact Jacobian where the law
+        remembers its past (analysis.stability), or None where it is not known; with
+        ``derivative``, (it, its derivative in s).  A law without memory has the periodic one,
+        ``result.J``, whatever s."""
+        if result.J is None:
+            return None
+        J = result.J.astype(complex)
+        return (J, np.zeros_like(J)) if derivative else J
+
     @property
     def dissipative(self) -> np.ndarray:
         """(num_pairs, num_comp) bool: the components along which the law can dissipate energy

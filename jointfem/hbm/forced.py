@@ -84,6 +84,9 @@ class ForcedProblem(Problem):
     def hill_operators(self, lam):
         return self.hbm.hill_operators(lam)
 
+    def floquet_correction(self, x, lam, evaluation):
+        return self.hbm.floquet_correction(lam, evaluation.contact)
+
     def num_dynamic(self) -> int:
         if self._num_dynamic is None:
             self._num_dynamic = count_exponents(self.structure.M, self.structure.D)

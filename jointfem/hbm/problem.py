@@ -24,6 +24,8 @@ A problem is a residual ``R(x, lam) = 0`` in harmonic coefficients ``x`` and one
   puts them together with the Jacobian (by default the point's own), and ``hill_size`` is the size of
   that Jacobian, which the automatic stability limit compares (the exact condensation, whose dynamic
   stiffness is not polynomial in the exponent, answers with the full model's, at its point);
+* ``floquet_correction(x, lam, evaluation)``: what Hill's matrix lacks where a contact law remembers
+  its past (None where not known);
 * ``no_stability``: None, or why no stability is computed for this problem's points.
 
 Implementations: :class:`jointfem.hbm.forced.ForcedProblem` (a Structure, physical or a Galerkin
@@ -66,7 +68,8 @@ class PointRecord:
     normal force (N), per physical pair (ContactLaw.summary).
     active: the penalty ROM's active components (num_components,) bool, else None.
     stability, harmonic_error: room for the leading Floquet exponent (the largest real part; complex,
-    1/s) and for the harmonic truncation error estimate (None until an analysis computes them).
+    1/s) and for the harmonic truncation error estimate (None until an analysis computes them);
+    stability_method: how the exponent was made (analysis.stability.HILL or HILL_MEMORY).
     harmonics: the H the point was solved at (set by the analysis; a branch whose H changes along it,
     analysis.adaptive); harmonics_enough: the smallest H the point's forces predict would do
     (analysis.adaptive.enough_harmonics).
@@ -81,6 +84,7 @@ class PointRecord:
     harmonic_error: float | None = None
     harmonics: int = 0
     harmonics_enough: int | None = None
+    stability_method: str | None = None
 
 
 @dataclass(frozen=True)
@@ -187,6 +191,14 @@ class Problem(ABC):
         if ops is None or evaluation.J is None:
             return None
         return evaluation.J, ops[0], ops[1], self.num_dynamic()
+
+    def floquet_correction(self, x: np.ndarray, lam: float, evaluation: Evaluation):
+        """None, or ``s -> (dJ(s), dJ'(s))`` (dense, complex, the size of the Jacobian of ``hill_matrices``):
+        what Hill's matrix J + s Delta1 + s^2 Delta2 lacks for a perturbation e^{s t} v where a
+        contact law remembers its past (a stuck slider: its force depends on the gap at its stick
+        onset, e^{-s tau} earlier; contact.law.ContactLaw.floquet_jacobian), and its derivative in
+        s.  None where it is not known: Hill's matrix is then taken as it is."""
+        return None
 
     @property
     def hill_size(self) -> int:

@@ -12,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
+from ..contact.law import ContactResult
 from ..harmonics import Harmonics
 from ..models.structure import Structure
 from .problem import Evaluation, KeepsLastEvaluation
@@ -35,6 +36,24 @@ def _selection(L: np.ndarray):
     if np.all(L[r, c] == 1.0) and np.unique(r).size == r.size and np.unique(c).size == c.size:
         return r, c
     return None
+
+
+def _pairs_of(pairs, res: ContactResult, B: np.ndarray, BT, keep: np.ndarray):
+    """A dense group's AFT result, gap operator G (P*m, n) and load operator L (dense, or a
+    selection (rows, columns): _selection) on the pairs ``keep`` only."""
+    m = pairs.num_comp
+    rows = (keep[:, None] * m + np.arange(m)).ravel()
+    sub = ContactResult(res.F[:, keep], res.J[keep], res.f_t[:, keep], res.g_t[:, keep], res.state_t[:, keep],
+                        res.w_start[keep])
+    if isinstance(BT, tuple):
+        where = np.full(pairs.num_pairs * m, -1)
+        where[rows] = np.arange(rows.size)
+        r, c = BT
+        inside = where[r] >= 0
+        BT = (where[r[inside]], c[inside])
+    else:
+        BT = BT[rows]
+    return sub, B[rows], BT
 
 
 class HBMResidual(KeepsLastEvaluation):
@@ -121,11 +140,44 @@ class HBMResidual(KeepsLastEvaluation):
         X = X.reshape(P * m, nh, nh, n)
         if isinstance(L, tuple):
             rows, cols = L
-            out = np.zeros((nh, n, nh, n))
+            out = np.zeros((nh, n, nh, n), dtype=X.dtype)
             out[:, cols] = X[rows].transpose(1, 0, 2, 3)
             return out.reshape(nh * n, nh * n)
         J4 = L.T @ X.reshape(P * m, nh * nh * n)  # (n, nh * nh * n): [i, h, k, j]
         return J4.reshape(n, nh, nh, n).transpose(1, 0, 2, 3).reshape(nh * n, nh * n)
+
+    def floquet_correction(self, omega: float, contact: list):
+        """``s -> (dJ(s), dJ'(s))``, dJ(s) = L^T (Jc(s) - Jc) G summed over the contact groups (dense,
+        complex) and its derivative in s: what turns the point's Jacobian into Hill's matrix of a
+        perturbation e^{s t} v where a law remembers its past (ContactLaw.floquet_jacobian;
+        analysis.stability), or None where a group's is not known or the model is sparse (a
+        full-order model: the refinement's dense solves would cost more than the sweep).
+        ``contact``: the point's AFT results, with their Jacobians."""
+        if not self.dense or any(res.J is None for res in contact):
+            return None
+        # only pairs that leave stick somewhere in the period can remember anything, and those whose
+        # slider a transient moved (a shakedown: w_start != 0; the AFT's tangent says how the
+        # transient placed it, a perturbed orbit leaves it frozen); a pair stuck at its unloaded
+        # position (or open) all period is its spring whatever s, and costs nothing here
+        parts = []
+        for (g, B, BT, *_), res in zip(self._groups, contact):
+            keep = np.flatnonzero(np.any(res.state_t != 0, axis=0)
+                                  | np.any(res.w_start.reshape(res.w_start.shape[0], -1) != 0, axis=1))
+            if keep.size:
+                sub, Bs, BTs = _pairs_of(g.pairs, res, B, BT, keep)
+                pairs = g.pairs.subset(keep)
+                if pairs.floquet_jacobian(sub, self.harmonics, 0.0, omega) is None:
+                    return None
+                parts.append((pairs, sub, Bs, BTs, self._contact_jacobian_dense(sub.J, Bs, BTs)))
+
+        def correction(s: complex):
+            out, slope = 0.0, 0.0
+            for pairs, res, B, BT, J0 in parts:
+                Js, dJs = pairs.floquet_jacobian(res, self.harmonics, s, omega, derivative=True)
+                out = out + (self._contact_jacobian_dense(Js, B, BT) - J0)
+                slope = slope + self._contact_jacobian_dense(dJs, B, BT)
+            return out, slope
+        return correction
 
     def _load(self, BT, F: np.ndarray) -> np.ndarray:
         """L^T applied to force coefficients F (nh, P*m) of one group, as the residual's (nh * n,)."""

@@ -379,6 +379,9 @@ class PenaltyProblem(Problem, Adaptive):
     def hill_operators(self, omega):
         return self.hbm().hill_operators(omega)
 
+    def floquet_correction(self, U, omega, evaluation):
+        return self.hbm().floquet_correction(omega, evaluation.contact)
+
     def num_dynamic(self) -> int:
         key = self.mask.tobytes()
         if key not in self._num_dynamic:
