@@ -156,8 +156,23 @@ def with_memory(J, d1, d2, correction, s_hill: np.ndarray, omega: float) -> np.n
     that the first step is the first-order perturbation.  A start that comes within MEMORY_SAME
     omega of a root already found stops there.  On the SDOF and 2-DOF Jenkins oscillators the roots
     are the exponents of an event-driven monodromy matrix (docs/benchmarks_slip_stability.md)."""
-    Jd, D1, D2 = (np.asarray(a.toarray() if sp.issparse(a) else a, dtype=float) for a in (J, d1, d2))
-    scale = max(np.abs(Jd).max(), 1e-300)
+    sparse = sp.issparse(J)
+    if sparse:  # a full-order model: complex sparse LU (SuperLU)
+        Jd, D1, D2 = (sp.csc_matrix(a) for a in (J, d1, d2))
+
+        def factor(A):
+            try:
+                lu = spla.splu(sp.csc_matrix(A))
+            except RuntimeError as exc:  # SuperLU: "Factor is exactly singular"
+                raise np.linalg.LinAlgError(str(exc)) from exc
+            return lambda v, trans="N": lu.solve(v, trans=trans)
+    else:
+        Jd, D1, D2 = (np.asarray(a.toarray() if sp.issparse(a) else a, dtype=float) for a in (J, d1, d2))
+
+        def factor(A):
+            lu = sla.lu_factor(A, check_finite=False)
+            return lambda v, trans="N": sla.lu_solve(lu, v, trans={"N": 0, "H": 2}[trans], check_finite=False)
+    scale = max(abs(Jd).max(), 1e-300)
     reach = MEMORY_REACH * abs(omega)
     if s_hill.real.max() > reach:
         return None  # a growth of e^(2 pi) a period or more: no verdict the memory can change
@@ -181,16 +196,24 @@ def with_memory(J, d1, d2, correction, s_hill: np.ndarray, omega: float) -> np.n
     def newton(z: complex, dJ, slope, found: list[complex]) -> complex | None:
         # Hill's eigenvector at its exponent: one inverse iteration on Hill's matrix there (moved
         # off the exponent by round-off's size, so that the factors stay finite)
-        z1 = z * (1.0 + 1e-12) + 1e-12 * abs(omega)
-        lu = sla.lu_factor(Jd + z1 * D1 + z1 * z1 * D2, check_finite=False)
-        x = sla.lu_solve(lu, b, check_finite=False)
-        left = sla.lu_solve(lu, b, trans=2, check_finite=False)
-        if not (np.all(np.isfinite(x)) and np.all(np.isfinite(left))):
+        for off in (1e-12, 1e-9):  # SuperLU may find the matrix at the exponent exactly singular
+            z1 = z * (1.0 + off) + off * abs(omega)
+            try:
+                solve = factor(Jd + z1 * D1 + z1 * z1 * D2)
+            except np.linalg.LinAlgError:
+                continue
+            x = solve(b)
+            left = solve(b, "H")
+            if np.all(np.isfinite(x)) and np.all(np.isfinite(left)):
+                break
+        else:
             return None
         e = left.conj() / (left.conj() @ x)  # e^H x = 1
         for _ in range(MEMORY_ITER):
-            lu = sla.lu_factor(Jd + z * D1 + z * z * D2 + dJ, check_finite=False)
-            u = sla.lu_solve(lu, (D1 + 2.0 * z * D2 + slope) @ x, check_finite=False)
+            try:
+                u = factor(Jd + z * D1 + z * z * D2 + dJ)((D1 + 2.0 * z * D2 + slope) @ x)
+            except np.linalg.LinAlgError:
+                return None
             step = -1.0 / (e @ u)
             if not np.isfinite(step):
                 return None
@@ -205,7 +228,7 @@ def with_memory(J, d1, d2, correction, s_hill: np.ndarray, omega: float) -> np.n
         return None
 
     dJ, slope = correction(starts[0])
-    if np.abs(dJ).max() <= MEMORY_NONE * scale:
+    if abs(dJ).max() <= MEMORY_NONE * scale:
         return None
     first = newton(starts[0], dJ, slope, [])
     if first is None:

@@ -456,11 +456,21 @@ class CondensedProblem(KeepsLastEvaluation, Problem):
         """Hill's problem of the full model at the full field of the point (full_coefficients): the
         condensed dynamic stiffness S_k(omega) is not polynomial in the exponent, the full model's
         is, and both have the same periodic solution (analysis.stability)."""
+        fp, x_full, ev = self._full_point(x, lam)
+        return ev.J, *fp.hill_operators(lam), fp.num_dynamic()
+
+    def floquet_correction(self, x, lam, evaluation):
+        """The full model's, at the full field of the point (as hill_matrices)."""
+        fp, x_full, ev = self._full_point(x, lam)
+        return fp.floquet_correction(x_full, lam, ev)
+
+    def _full_point(self, x, lam):
+        """(the full model's problem, the point's full field, its evaluation there with the Jacobian)."""
         if self._full_problem is None:
             self._full_problem = ForcedProblem(self.full, self.harmonics)
         fp = self._full_problem
-        ev = fp.evaluate(self.full_coefficients(x, lam), lam, jacobian=True)
-        return ev.J, *fp.hill_operators(lam), fp.num_dynamic()
+        x_full = self.full_coefficients(x, lam)
+        return fp, x_full, fp.evaluate(x_full, lam, jacobian=True)
 
     @property
     def hill_size(self) -> int:

@@ -40,11 +40,14 @@ def _selection(L: np.ndarray):
 
 def _pairs_of(pairs, res: ContactResult, B: np.ndarray, BT, keep: np.ndarray):
     """A dense group's AFT result, gap operator G (P*m, n) and load operator L (dense, or a
-    selection (rows, columns): _selection) on the pairs ``keep`` only."""
+    selection (rows, columns): _selection) on the pairs ``keep`` only (the result alone where G is
+    None)."""
     m = pairs.num_comp
     rows = (keep[:, None] * m + np.arange(m)).ravel()
     sub = ContactResult(res.F[:, keep], res.J[keep], res.f_t[:, keep], res.g_t[:, keep], res.state_t[:, keep],
                         res.w_start[keep])
+    if B is None:
+        return sub, None, None
     if isinstance(BT, tuple):
         where = np.full(pairs.num_pairs * m, -1)
         where[rows] = np.arange(rows.size)
@@ -150,32 +153,48 @@ class HBMResidual(KeepsLastEvaluation):
         """``s -> (dJ(s), dJ'(s))``, dJ(s) = L^T (Jc(s) - Jc) G summed over the contact groups (dense,
         complex) and its derivative in s: what turns the point's Jacobian into Hill's matrix of a
         perturbation e^{s t} v where a law remembers its past (ContactLaw.floquet_jacobian;
-        analysis.stability), or None where a group's is not known or the model is sparse (a
-        full-order model: the refinement's dense solves would cost more than the sweep).
+        analysis.stability), or None where a group's is not known; sparse where the model is.
         ``contact``: the point's AFT results, with their Jacobians."""
-        if not self.dense or any(res.J is None for res in contact):
+        if any(res.J is None for res in contact):
             return None
         # only pairs that leave stick somewhere in the period can remember anything, and those whose
         # slider a transient moved (a shakedown: w_start != 0; the AFT's tangent says how the
         # transient placed it, a perturbed orbit leaves it frozen); a pair stuck at its unloaded
         # position (or open) all period is its spring whatever s, and costs nothing here
         parts = []
-        for (g, B, BT, *_), res in zip(self._groups, contact):
+        for (g, B, BT, f0, rows, cols), res in zip(self._groups, contact):
             keep = np.flatnonzero(np.any(res.state_t != 0, axis=0)
                                   | np.any(res.w_start.reshape(res.w_start.shape[0], -1) != 0, axis=1))
-            if keep.size:
+            if not keep.size:
+                continue
+            pairs = g.pairs.subset(keep)
+            if self.dense:
                 sub, Bs, BTs = _pairs_of(g.pairs, res, B, BT, keep)
-                pairs = g.pairs.subset(keep)
                 if pairs.floquet_jacobian(sub, self.harmonics, 0.0, omega) is None:
                     return None
                 parts.append((pairs, sub, Bs, BTs, self._contact_jacobian_dense(sub.J, Bs, BTs)))
+            else:  # the kept pairs' blocks of the group's sparse pattern (pair-major: contact_pattern)
+                sub = _pairs_of(g.pairs, res, None, None, keep)[0]
+                if pairs.floquet_jacobian(sub, self.harmonics, 0.0, omega) is None:
+                    return None
+                block = rows.size // g.pairs.num_pairs
+                at = (keep[:, None] * block + np.arange(block)).ravel()
+                parts.append((pairs, sub, B, BT, (rows[at], cols[at], B.shape[0])))
+
+        if not parts:
+            return None  # no pair remembers anything: Hill's matrix is exact
 
         def correction(s: complex):
             out, slope = 0.0, 0.0
             for pairs, res, B, BT, J0 in parts:
                 Js, dJs = pairs.floquet_jacobian(res, self.harmonics, s, omega, derivative=True)
-                out = out + (self._contact_jacobian_dense(Js, B, BT) - J0)
-                slope = slope + self._contact_jacobian_dense(dJs, B, BT)
+                if self.dense:
+                    out = out + (self._contact_jacobian_dense(Js, B, BT) - J0)
+                    slope = slope + self._contact_jacobian_dense(dJs, B, BT)
+                else:
+                    r, c, size = J0
+                    out = out + BT @ sp.csr_matrix(((Js - res.J).ravel(), (r, c)), shape=(size, size)) @ B
+                    slope = slope + BT @ sp.csr_matrix((dJs.ravel(), (r, c)), shape=(size, size)) @ B
             return out, slope
         return correction
 
