@@ -66,6 +66,17 @@ def beam(H: int, N: int):
     return build_rom(create_structure(sc), "exact"), (opts.omega_start, opts.omega_end)
 
 
+def lap3d(H: int, N: int):
+    """The 25-pair 3D lap joint (demos/lap3d_friction.toml: two tangential directions and a normal,
+    the sampled law) by the exact condensation at (H, N)."""
+    from jointfem.app import override, sweep_options
+    from jointfem.rom.reductors import build_rom
+    from jointfem.scene import create_structure, load_scene
+    sc = override(load_scene(ROOT / "demos" / "lap3d_friction.toml"), [f"solver.harmonics={H}", f"solver.samples={N}"])
+    opts = sweep_options(sc, stability="off")
+    return build_rom(create_structure(sc), "exact"), (opts.omega_start, opts.omega_end)
+
+
 # name -> (model at (H, N) -> (model, window)), output, the H's, the reference H, N
 CASES = {
     **{f"sdof-F{F}": (lambda H, N, F=F: (sdof(F), (0.5, 2.0)), "m.x", (1, 3, 5, 7, 9), 41, 1024)
@@ -73,6 +84,7 @@ CASES = {
     # (at H = 1 b's first harmonic rises to the window's end: no peak, the resonance unseen)
     "two-mass": (lambda H, N: (two_mass(), (0.60, 0.65)), "b.x", (3, 5, 7, 9), 41, 1024),
     "beam-3N": (beam, "b1.mid.uy", (5, 9, 13, 21), 41, 1024),
+    "lap3d": (lap3d, "a_mid.uy", (3, 5), 25, 256),
 }
 
 
