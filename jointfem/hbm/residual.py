@@ -185,14 +185,15 @@ class HBMResidual(KeepsLastEvaluation):
             return None  # no pair remembers anything: Hill's matrix is exact
 
         def correction(s: complex):
+            # base: dense, the periodic contact Jacobian to subtract; sparse, where the blocks go
             out, slope = 0.0, 0.0
-            for pairs, res, B, BT, J0 in parts:
+            for pairs, res, B, BT, base in parts:
                 Js, dJs = pairs.floquet_jacobian(res, self.harmonics, s, omega, derivative=True)
                 if self.dense:
-                    out = out + (self._contact_jacobian_dense(Js, B, BT) - J0)
+                    out = out + (self._contact_jacobian_dense(Js, B, BT) - base)
                     slope = slope + self._contact_jacobian_dense(dJs, B, BT)
                 else:
-                    r, c, size = J0
+                    r, c, size = base
                     out = out + BT @ sp.csr_matrix(((Js - res.J).ravel(), (r, c)), shape=(size, size)) @ B
                     slope = slope + BT @ sp.csr_matrix((dJs.ravel(), (r, c)), shape=(size, size)) @ B
             return out, slope
