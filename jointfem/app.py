@@ -103,7 +103,8 @@ def sweep_options(scene: Scene, *, stability: str | None = None) -> SweepOptions
     stability = scene.solver.stability if stability is None else stability
     s = scene.solver
     return SweepOptions(
-        stability=STABILITY[stability], omega_limits=s.omega_limits, peak_error=s.peak_error,
+        stability=STABILITY[stability], stability_memory=s.stability_memory, omega_limits=s.omega_limits,
+        peak_error=s.peak_error,
         harmonic_adaptation=(HarmonicAdaptation(target=s.harmonic_target, H_max=s.harmonics_max, tol=s.amplitude_tol)
                              if s.harmonics_auto else None),
         omega_start=s.omega_start, omega_end=s.omega_end, harmonics=Harmonics(s.harmonics, s.samples),

@@ -71,6 +71,9 @@ class SolverSpec:
     peak_error: bool = False
     # every point's Floquet exponents: "auto", "on" or "off" (--stability, which overrides it)
     stability: str = "auto"
+    # the exponents with the contact laws' memory (a stuck slider's e^(-s tau)); false: Hill's
+    # matrix as the AFT's periodic Jacobian gives it, about half the stability's cost
+    stability_memory: bool = True
 
     @property
     def omega_start(self) -> float:
@@ -275,7 +278,8 @@ def _solver(t: _Table) -> SolverSpec:
         time_limit=t.number("time_limit", SolverSpec.time_limit, gt=0), harmonics_auto=auto, harmonic_target=target,
         harmonics_max=H_max, amplitude_tol=amp_tol, samples_given=t.has("samples"), aft=t.string("aft", "sampled", choices=AFT_KINDS),
         omega_limits=limits, peak_error=t.boolean("peak_error", False),
-        stability=t.string("stability", "auto", choices=("auto", "on", "off")))
+        stability=t.string("stability", "auto", choices=("auto", "on", "off")),
+        stability_memory=t.boolean("stability_memory", True))
     if spec.kink_tol > 1e-3:
         t.fail("kink_tol", spec.kink_tol, "must be <= 1e-3 (a residual of 0.1 % of the force)")
     if not spec.ds_min <= spec.ds0 <= spec.ds_max:

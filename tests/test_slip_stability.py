@@ -25,7 +25,11 @@ sys.path.insert(0, str(ROOT / "benchmarks"))
 import reference_monodromy as rm  # noqa: E402
 import slip_stability as ss  # noqa: E402
 
+from dataclasses import replace  # noqa: E402
+
 from jointfem.analysis.frf import create_problem, solve_at  # noqa: E402
+from jointfem.app import override, sweep_options  # noqa: E402
+from jointfem.scene import load_scene  # noqa: E402
 from jointfem.harmonics import Harmonics  # noqa: E402
 from jointfem.models.lumped import create_lumped  # noqa: E402
 
@@ -133,7 +137,9 @@ def test_hill_without_the_memory_where_it_agrees_and_where_not(kind, c, omega, F
 def test_a_sweep_records_which_exponents_it_made():
     """Per point, branch.npz ``floquet_method``: "hill-memory" where the slider slips (its memory
     refines Hill's exponents), "hill" where it sticks all period (no memory: Hill's matrix is exact).
-    The SDOF Jenkins oscillator at F = 0.2 through its resonance, N = 256."""
+    The SDOF Jenkins oscillator at F = 0.2 through its resonance, N = 256.  With the scene's
+    ``stability_memory = false`` the same branch has Hill's exponents everywhere, which differ from
+    the memory's where it slips."""
     from conftest import sdof
     from jointfem.analysis.frf import SweepOptions, compute_frf
 
@@ -142,6 +148,16 @@ def test_a_sweep_records_which_exponents_it_made():
     slips = (frf.states == 1).any(axis=(1, 2))
     assert slips.any() and (~slips).any()
     assert np.array_equal(method == "hill-memory", slips)
+    # [solver] stability_memory = false: Hill's matrix as it is, everywhere, and its exponents
+    opts = sweep_options(override(load_scene(ROOT / "demos" / "sdof_jenkins.toml"), ["solver.stability_memory=false"]))
+    assert opts.stability_memory is False
+    plain = compute_frf(create_lumped(sdof(0.2)), replace(opts, omega_start=0.5, omega_end=2.0,
+                                                          harmonics=Harmonics(7, 256), stability=True))
+    assert set(plain.info["arrays"]["floquet_method"]) == {"hill"}
+    assert np.array_equal(plain.omega, frf.omega)
+    slip = np.flatnonzero(slips)
+    moved = np.abs(plain.info["arrays"]["floquet_max_real"][slip] - frf.info["arrays"]["floquet_max_real"][slip])
+    assert moved.max() > 1e-3 * np.abs(frf.info["arrays"]["floquet_max_real"][slip]).max()
 
 
 @pytest.mark.parametrize("kind,c,omega,F", [("sdof", 0.02, 1.4, 0.599), ("sdof", 0.02, 2.5, 5.0)])

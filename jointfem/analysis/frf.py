@@ -39,6 +39,9 @@ class SweepOptions:
     # when that is set
     stability: bool | None = None
     stability_auto_unknowns: int | None = None
+    # the exponents with the contact laws' memory where the problem knows it (stability.with_memory);
+    # False: Hill's matrix as it is (on the lap2d penalty ROM 1.92 times the sweep against 4.23)
+    stability_memory: bool = True
     # warn when a point's harmonic truncation estimate (analysis.convergence) passes this: the
     # first harmonic then changes by about e^2 / 4 when H grows by 2 (SDOF Jenkins, measured)
     harmonic_tol: float = 0.05
@@ -214,7 +217,7 @@ def compute_frf(model: Structure | Reduction, options: SweepOptions, *,
 
     def tracker_of(pb: Problem) -> ExponentTracker:
         if id(pb) not in trackers:
-            trackers[id(pb)] = ExponentTracker(pb)
+            trackers[id(pb)] = ExponentTracker(pb, memory=options.stability_memory)
         return trackers[id(pb)]
 
     def recorder(pb: Problem):

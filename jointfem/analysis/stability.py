@@ -315,15 +315,16 @@ class ExponentTracker:
     show as a change of stability.  An eigensolve that fails (ARPACK without convergence, a singular
     factor) gives None for the point and is counted in ``failures``: the sweep keeps its points."""
 
-    def __init__(self, problem: Problem):
+    def __init__(self, problem: Problem, *, memory: bool = True):
         self.problem = problem
+        self.memory = memory
         self.first = FIRST
         self.dense = 2 * problem.hill_size <= DENSE_LIMIT
         self.failures: list[tuple[float, str]] = []  # (omega, what failed)
 
     def __call__(self, x: np.ndarray, lam: float, evaluation: Evaluation) -> tuple[complex | None, str]:
         try:
-            s, needed, method = _leading(self.problem, x, lam, evaluation, self.dense, self.first)
+            s, needed, method = _leading(self.problem, x, lam, evaluation, self.dense, self.first, self.memory)
         except (spla.ArpackNoConvergence, spla.ArpackError, RuntimeError, np.linalg.LinAlgError) as exc:
             self.failures.append((float(lam), f"{type(exc).__name__}: {exc}"))
             return None, HILL
