@@ -72,7 +72,7 @@ class SolverSpec:
     # every point's Floquet exponents: "auto", "on" or "off" (--stability, which overrides it)
     stability: str = "auto"
     # the exponents with the contact laws' memory (a stuck slider's e^(-s tau)); false: Hill's
-    # matrix as the AFT's periodic Jacobian gives it, about half the stability's cost
+    # matrix as the AFT's periodic Jacobian gives it, about a third of the stability's cost
     stability_memory: bool = True
 
     @property
