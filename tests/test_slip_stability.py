@@ -162,10 +162,10 @@ def test_a_sweep_records_which_exponents_it_made():
 
 @pytest.mark.parametrize("kind,c,omega,F", [("sdof", 0.02, 1.4, 0.599), ("sdof", 0.02, 2.5, 5.0)])
 def test_memory_weighted_hill_gives_the_monodromy_exponent(kind, c, omega, F):
-    """The cause of the xfails above.  Hill's problem rebuilt on the reference orbit (H = 31, 4096
-    samples) with the stuck force's memory term weighted by e^(-s tau) (tau the time since the stick
-    onset), solved by Newton from jointfem's Hill exponent, lands on the monodromy's exponent; with
-    the weights set to 1 it gives jointfem's Hill exponent back.  Both to 1 % of the real part
+    """The cause, without jointfem's memory kernel: Hill's problem rebuilt on the reference orbit
+    (H = 31, 4096 samples) with the stuck force's memory term weighted by e^(-s tau) (tau the time
+    since the stick onset), solved by Newton from Hill's exponent, lands on the monodromy's
+    exponent; with the weights set to 1 it gives Hill's exponent back.  Both to 1 % of the real part
     (measured 0.02 % and 0.04 % with the weights, 0.02 % and 5e-13 without; at most 0.3 % and
     1.0 % over the benchmark's 20 slipping points: the first-order quadrature error of the
     stick/slip switches, jointfem sampling 2048 points a period and this 4096)."""
