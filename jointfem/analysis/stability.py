@@ -145,9 +145,9 @@ def with_memory(J, d1, d2, correction, s_hill: np.ndarray, omega: float) -> np.n
     """The exponents of Hill's problem with the contact laws' memory, T(s) v = 0 with
     T(s) = J + s d1 + s^2 d2 + dJ(s) (``Problem.floquet_correction``), each by Newton from one of
     the MEMORY_CANDIDATES exponents of ``s_hill`` (Hill's, in the strip) with the largest real
-    parts, mapped into the strip; or None where the memory changes nothing (every correction zero)
-    or the Newton from Hill's leading exponent fails (then Hill's own exponents stand, and the point
-    says so).  A later start whose Newton fails has no root near it with the memory (on the SDOF
+    parts, mapped into the strip; or None where the memory changes nothing (every correction zero),
+    is not known (``correction`` answers None), or the Newton from Hill's leading exponent fails
+    (then Hill's own exponents stand, and the point says so).  A later start whose Newton fails has no root near it with the memory (on the SDOF
     oscillator, Newton on log det T from there lands on the leading root): it is dropped.
 
     Newton on the bordered system T(s) x = 0, e^H x = 1 (Ruhe's nonlinear inverse iteration):
@@ -227,7 +227,10 @@ def with_memory(J, d1, d2, correction, s_hill: np.ndarray, omega: float) -> np.n
             dJ, slope = correction(z)
         return None
 
-    dJ, slope = correction(starts[0])
+    at_start = correction(starts[0])
+    if at_start is None:  # a law whose memory is not written
+        return None
+    dJ, slope = at_start
     if abs(dJ).max() <= MEMORY_NONE * scale:
         return None
     first = newton(starts[0], dJ, slope, [])

@@ -72,6 +72,7 @@ class CondensedProblem(KeepsLastEvaluation, Problem):
     # adds iterations (10 per point instead of 2 on the 3D lap joint), so compute_frf raises it.
     tol_floor = 1e-8
     _full_problem = None  # the full model's HBM problem, for Hill's method at this problem's points
+    _full_last = None  # (key, _full_point's answer) of the last point asked
 
     def __init__(self, structure: Structure, harmonics: Harmonics, *, modal: "bool | None | ModalBasis" = None,
                  sparse: str | None = None):
@@ -465,12 +466,16 @@ class CondensedProblem(KeepsLastEvaluation, Problem):
         return fp.floquet_correction(x_full, lam, ev)
 
     def _full_point(self, x, lam):
-        """(the full model's problem, the point's full field, its evaluation there with the Jacobian)."""
+        """(the full model's problem, the point's full field, its evaluation there with the Jacobian),
+        kept for the last point: hill_matrices and floquet_correction both ask for it."""
         if self._full_problem is None:
             self._full_problem = ForcedProblem(self.full, self.harmonics)
-        fp = self._full_problem
-        x_full = self.full_coefficients(x, lam)
-        return fp, x_full, fp.evaluate(x_full, lam, jacobian=True)
+        key = (float(lam), x.tobytes())
+        if self._full_last is None or self._full_last[0] != key:
+            fp = self._full_problem
+            x_full = self.full_coefficients(x, lam)
+            self._full_last = (key, (fp, x_full, fp.evaluate(x_full, lam, jacobian=True)))
+        return self._full_last[1]
 
     @property
     def hill_size(self) -> int:

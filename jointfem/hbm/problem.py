@@ -193,11 +193,12 @@ class Problem(ABC):
         return evaluation.J, ops[0], ops[1], self.num_dynamic()
 
     def floquet_correction(self, x: np.ndarray, lam: float, evaluation: Evaluation):
-        """None, or ``s -> (dJ(s), dJ'(s))`` (dense, complex, the size of the Jacobian of ``hill_matrices``):
-        what Hill's matrix J + s Delta1 + s^2 Delta2 lacks for a perturbation e^{s t} v where a
-        contact law remembers its past (a stuck slider: its force depends on the gap at its stick
-        onset, e^{-s tau} earlier; contact.law.ContactLaw.floquet_jacobian), and its derivative in
-        s.  None where it is not known: Hill's matrix is then taken as it is."""
+        """None, or ``s -> (dJ(s), dJ'(s))`` (complex, dense or sparse as the Jacobian of
+        ``hill_matrices``): what Hill's matrix J + s Delta1 + s^2 Delta2 lacks for a perturbation
+        e^{s t} v where a contact law remembers its past (a stuck slider: its force depends on the gap
+        at its stick onset, e^{-s tau} earlier; contact.law.ContactLaw.floquet_jacobian), and its
+        derivative in s.  None, or a function answering None, where it is not known: Hill's matrix is
+        then taken as it is."""
         return None
 
     @property

@@ -153,7 +153,8 @@ class HBMResidual(KeepsLastEvaluation):
         """``s -> (dJ(s), dJ'(s))``, dJ(s) = L^T (Jc(s) - Jc) G summed over the contact groups (dense,
         complex) and its derivative in s: what turns the point's Jacobian into Hill's matrix of a
         perturbation e^{s t} v where a law remembers its past (ContactLaw.floquet_jacobian;
-        analysis.stability), or None where a group's is not known; sparse where the model is.
+        analysis.stability), sparse where the model is; the function answers None where a group's is
+        not known (the event-accurate law).
         ``contact``: the point's AFT results, with their Jacobians."""
         if any(res.J is None for res in contact):
             return None
@@ -170,13 +171,9 @@ class HBMResidual(KeepsLastEvaluation):
             pairs = g.pairs.subset(keep)
             if self.dense:
                 sub, Bs, BTs = _pairs_of(g.pairs, res, B, BT, keep)
-                if pairs.floquet_jacobian(sub, self.harmonics, 0.0, omega) is None:
-                    return None
                 parts.append((pairs, sub, Bs, BTs, self._contact_jacobian_dense(sub.J, Bs, BTs)))
             else:  # the kept pairs' blocks of the group's sparse pattern (pair-major: contact_pattern)
                 sub = _pairs_of(g.pairs, res, None, None, keep)[0]
-                if pairs.floquet_jacobian(sub, self.harmonics, 0.0, omega) is None:
-                    return None
                 block = rows.size // g.pairs.num_pairs
                 at = (keep[:, None] * block + np.arange(block)).ravel()
                 parts.append((pairs, sub, B, BT, (rows[at], cols[at], B.shape[0])))
@@ -188,7 +185,10 @@ class HBMResidual(KeepsLastEvaluation):
             # base: dense, the periodic contact Jacobian to subtract; sparse, where the blocks go
             out, slope = 0.0, 0.0
             for pairs, res, B, BT, base in parts:
-                Js, dJs = pairs.floquet_jacobian(res, self.harmonics, s, omega, derivative=True)
+                both = pairs.floquet_jacobian(res, self.harmonics, s, omega, derivative=True)
+                if both is None:
+                    return None  # a law whose memory is not written (the first call says so)
+                Js, dJs = both
                 if self.dense:
                     out = out + (self._contact_jacobian_dense(Js, B, BT) - base)
                     slope = slope + self._contact_jacobian_dense(dJs, B, BT)
