@@ -49,6 +49,8 @@ BAD = {
                                       'between = ["m.x", "ground"]\ntangential = ["y"]'),
                          "jenkins[0].between", "['m.x', 'ground']"),
     "stability": (SDOF.replace("harmonics = 7", 'harmonics = 7\nstability = "yes"'), "solver.stability", "yes"),
+    "stability_memory": (SDOF.replace("harmonics = 7", 'harmonics = 7\nstability_memory = "yes"'),
+                         "solver.stability_memory", "yes"),
     "reduction method": (SDOF + '\n[reduction]\nmethod = "guyan"\n', "reduction.method", "guyan"),
     "reduction modes < 0": (SDOF + '\n[reduction]\nmodes = -1\n', "reduction.modes", "-1"),
     "reduction tvd_kind": (SDOF + '\n[reduction]\ntvd_kind = "exact"\n', "reduction.tvd_kind", "exact"),
