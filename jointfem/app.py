@@ -104,7 +104,7 @@ def sweep_options(scene: Scene, *, stability: str | None = None) -> SweepOptions
     s = scene.solver
     return SweepOptions(
         stability=STABILITY[stability], stability_memory=s.stability_memory, omega_limits=s.omega_limits,
-        peak_error=s.peak_error,
+        peak_error=s.peak_error, peak_share=s.peak_share,
         harmonic_adaptation=(HarmonicAdaptation(target=s.harmonic_target, H_max=s.harmonics_max, tol=s.amplitude_tol)
                              if s.harmonics_auto else None),
         omega_start=s.omega_start, omega_end=s.omega_end, harmonics=Harmonics(s.harmonics, s.samples),

@@ -187,6 +187,8 @@ def save_frf(frf: FrequencyResponse, out: Path, *, summary: dict) -> dict:
         if located is not None:  # how it was found: solved between the points, or the range's edge
             peaks[name].update(located=located.located, edge=located.edge, solves=located.solves,
                                residual=located.residual, **({"reason": located.reason} if located.reason else {}))
+            if located.located:  # the top is at most this share of amp1_m above it (analysis.peaks)
+                peaks[name]["located_to_rel"] = located.tolerance
         changes = frf.info.get("peak_changes", {})
         if name in changes:  # an auto sweep's error bar of the peak (analysis.frf.peak_change)
             peaks[name]["change_at_higher_H_m"] = changes[name]

@@ -74,6 +74,9 @@ class SolverSpec:
     # the exponents with the contact laws' memory (a stuck slider's e^(-s tau)); false: Hill's
     # matrix as the AFT's periodic Jacobian gives it, about a third of the stability's cost
     stability_memory: bool = True
+    # each located peak searched until nothing can beat it by more than this share of its error bar
+    # (analysis.frf.SweepOptions.peak_share); 0: to 1e-8 in omega, whatever the error bar
+    peak_share: float = 0.1
 
     @property
     def omega_start(self) -> float:
@@ -279,7 +282,9 @@ def _solver(t: _Table) -> SolverSpec:
         harmonics_max=H_max, amplitude_tol=amp_tol, samples_given=t.has("samples"), aft=t.string("aft", "sampled", choices=AFT_KINDS),
         omega_limits=limits, peak_error=t.boolean("peak_error", False),
         stability=t.string("stability", "auto", choices=("auto", "on", "off")),
-        stability_memory=t.boolean("stability_memory", True))
+        stability_memory=t.boolean("stability_memory", True), peak_share=t.number("peak_share", SolverSpec.peak_share, ge=0))
+    if spec.peak_share > 1:
+        t.fail("peak_share", spec.peak_share, "must be <= 1 (a share of the peak's error bar)")
     if spec.kink_tol > 1e-3:
         t.fail("kink_tol", spec.kink_tol, "must be <= 1e-3 (a residual of 0.1 % of the force)")
     if not spec.ds_min <= spec.ds0 <= spec.ds_max:

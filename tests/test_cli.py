@@ -74,10 +74,12 @@ def _run(*args):
 
 def test_frf_with_the_penalty_rom_records_its_size(tmp_path):
     scene = ROOT / "demos" / "sdof_jenkins.toml"
-    r = _run("frf", scene, "--out", tmp_path / "full", "--harmonics", "3", "--samples", "256", "--quiet")
+    # both peaks searched to 1e-8 in omega (solver.peak_share = 0), not to their error bars: the same top
+    r = _run("frf", scene, "--out", tmp_path / "full", "--harmonics", "3", "--samples", "256", "--quiet",
+             "--set", "solver.peak_share=0")
     assert r.returncode == 0, r.stderr
     r = _run("frf", scene, "--out", tmp_path / "pen", "--harmonics", "3", "--samples", "256", "--quiet",
-             "--method", "penalty", "--modes", "1")
+             "--method", "penalty", "--modes", "1", "--set", "solver.peak_share=0")
     assert r.returncode == 0, r.stderr
     s = json.loads((tmp_path / "pen" / "summary.json").read_text())
     # one mode (the whole model) plus the slider's internal variable once it slips
@@ -540,7 +542,8 @@ def test_a_scene_names_its_reduction_and_the_flags_override_it(tmp_path, capsys)
 
     path = tmp_path / "sdof_exact.toml"
     text = (ROOT / "demos" / "sdof_jenkins.toml").read_text()
-    path.write_text(text.replace("harmonics = 7", 'harmonics = 7\nstability = "on"') +
+    # peaks searched to 1e-8 in omega (peak_share = 0), not to their error bars: the same top in both
+    path.write_text(text.replace("harmonics = 7", 'harmonics = 7\nstability = "on"\npeak_share = 0') +
                     '\n[reduction]\nmethod = "exact"\n')
     peaks = {}
     # the scene's [solver] stability too: "on" computes the exact condensation's, which "auto" does not

@@ -51,6 +51,8 @@ BAD = {
     "stability": (SDOF.replace("harmonics = 7", 'harmonics = 7\nstability = "yes"'), "solver.stability", "yes"),
     "stability_memory": (SDOF.replace("harmonics = 7", 'harmonics = 7\nstability_memory = "yes"'),
                          "solver.stability_memory", "yes"),
+    "peak_share": (SDOF.replace("harmonics = 7", 'harmonics = 7\npeak_share = 2'), "solver.peak_share", "2"),
+    "peak_share < 0": (SDOF.replace("harmonics = 7", 'harmonics = 7\npeak_share = -0.1'), "solver.peak_share", "-0.1"),
     "reduction method": (SDOF + '\n[reduction]\nmethod = "guyan"\n', "reduction.method", "guyan"),
     "reduction modes < 0": (SDOF + '\n[reduction]\nmodes = -1\n', "reduction.modes", "-1"),
     "reduction tvd_kind": (SDOF + '\n[reduction]\ntvd_kind = "exact"\n', "reduction.tvd_kind", "exact"),

@@ -19,7 +19,7 @@ from ..results import FrequencyResponse
 from ..rom.common import Reduction
 from .adaptive import HarmonicAdaptation, enough_harmonics, resize, trace
 from .convergence import PEAK_SPAN, TruncationEstimator, amplitude_and_rms, top_harmonic_share
-from .peaks import locate_peaks, output_signal
+from .peaks import locate_peaks, output_amplitude, output_signal
 from .stability import ExponentTracker, is_stable
 
 log = logging.getLogger(__name__)
@@ -32,6 +32,9 @@ class SweepOptions:
     harmonics: Harmonics = Harmonics(5, 256)
     continuation: ContinuationOptions = field(default_factory=ContinuationOptions)
     locate_peaks: bool = True  # every output's peak solved to the Newton tolerance (analysis.peaks)
+    # each peak located until nothing can beat its best point by more than this share of its error
+    # bar (peak_tolerance); 0: to omega_rtol in omega (analysis.peaks), whatever the error bar
+    peak_share: float = 0.1
     # Floquet exponents of every point by Hill's method (analysis.stability): dense up to
     # stability.DENSE_LIMIT first-order unknowns, else those near zero by shift-invert Arnoldi.  True
     # always, False never, None ("auto") wherever the problem has Hill matrices and computes them by
@@ -56,6 +59,29 @@ class SweepOptions:
     # where a point's truncation estimate passes the target, lowered where it is far below; None:
     # harmonics.H everywhere
     harmonic_adaptation: HarmonicAdaptation | None = None
+
+
+# the least relative amplitude tolerance of a located peak: below every truncation error recorded at a
+# located peak (5e-6 of it, the SDOF oscillator at H = 9; docs/benchmarks_truncation.md), and 1000
+# times the amplitude's round-off at the Newton tolerance
+PEAK_RTOL_MIN = 1e-7
+
+
+def peak_tolerance(X: np.ndarray, harmonic_error: np.ndarray, amplitude_change: np.ndarray | None, outputs: dict,
+                   harmonics: Harmonics, share: float) -> np.ndarray:
+    """(num_points, num_outputs): the relative amplitude tolerance to which a peak at each point is
+    located, ``share`` of the point's error bar, at least PEAK_RTOL_MIN.  The error bar: the change of
+    the output's amplitude to the point at H + step where the adaptive sweep solved it
+    (``amplitude_change``, NaN elsewhere), else the truncation estimate e read as a relative change
+    e^2 / 4 (SweepOptions.harmonic_tol; measured on the SDOF oscillator).  Where e^2 / 4 is below the
+    truth (the beam at H = 5: 9e-6 for a 5.1 % error, docs/theory.md) the tolerance is tighter, not
+    looser."""
+    bar = np.repeat((np.asarray(harmonic_error, float) ** 2 / 4)[:, None], len(outputs), axis=1)
+    if amplitude_change is not None:
+        amp = np.array([[output_amplitude(x, dof, harmonics) for dof in outputs.values()] for x in X])
+        known = np.isfinite(amplitude_change) & (amp > 0)
+        bar[known] = np.abs(amplitude_change[known]) / amp[known]
+    return np.maximum(PEAK_RTOL_MIN, share * np.nan_to_num(bar, nan=0.0))
 
 
 def _stability_of(points, H_of, problem_at, tracker_of, stopped, progress=None):
@@ -313,8 +339,13 @@ def compute_frf(model: Structure | Reduction, options: SweepOptions, *,
     peaks = {}
     t_peaks = time.perf_counter()
     if options.locate_peaks and not (stopped is not None and stopped.interrupted):  # Ctrl-C: no more solves
+        rtol = None
+        if options.peak_share > 0:
+            change = None if adaptive is None else adaptive.amplitude_change
+            rtol = peak_tolerance(X, np.array([r.harmonic_error for r in records]), change, layout.outputs, h,
+                                  options.peak_share)
         peaks = locate_peaks(problem, X, omega, residual, records, layout.outputs, scales=scales,
-                             lam_scale=lam_scale, newton=cont.newton)
+                             lam_scale=lam_scale, newton=cont.newton, amplitude_rtol=rtol)
     t_online = time.perf_counter() - t1
     t_peaks = time.perf_counter() - t_peaks
     peak_errors = {}

@@ -34,6 +34,18 @@ omega, and two searches of the same branch, whatever its points, agree to ``omeg
 top, as far as the amplitudes solved can tell: on lap2d's exact condensation they scatter by
 2.4e-12 of themselves near the top, which with the curvature there blurs its omega by about 3.5e-8).
 
+A peak is searched to its error bar, not beyond it (analysis.frf.peak_tolerance: a tenth of the
+truncation error estimated at the largest point, in amplitude): the search stops once nothing can
+beat the best point solved by more than that.  First by the cubics through the three points around
+the largest (Hermite's, with the slopes of the smooth pieces; the tangents' meeting point where a
+kink tops a cell), each solve placed where they top out, for MODEL_STEPS solves: where A is smooth
+to the tolerance (the 25-pair lap joint's many shallow kinks at N = 256) that is a few solves
+(6 against 22 by the branch and bound alone, and 126 to omega_rtol).  The kinks the points show
+(a chord steeper or shallower than the slopes at its ends, a slope that rises towards the top) lift
+every cell's bound; where they are deeper than the tolerance (the SDOF oscillator at N = 128, whose
+top hides between two points whose slopes both fall) the cubics do not settle and the branch and
+bound goes on from the points solved.
+
 A largest amplitude at the first or last point is an *edge* of the range, not a peak, and is
 reported as such.
 """
@@ -65,6 +77,10 @@ SAFETY = 2.0
 # each a tangent dearer.  "steepest" is kept as the reference that tests/test_peaks.py compares with.
 KINK_BOUND = "pieces"
 
+# points solved where the cubics through the points solved top out, before the branch and bound
+# takes over (a peak searched to a tolerance; analysis.frf.peak_tolerance)
+MODEL_STEPS = 10
+
 
 @dataclass(frozen=True)
 class Peak:
@@ -80,6 +96,8 @@ class Peak:
     edge: bool = False
     solves: int = 0  # corrector solves spent
     residual: float = 0.0  # achieved max|R|/r_scale at the located point
+    # located: the top exceeds this amplitude by at most this share of it (0: searched to omega_rtol)
+    tolerance: float = 0.0
     reason: str = ""
     x: np.ndarray | None = field(default=None, repr=False, compare=False)  # the solution there (located)
 
@@ -114,8 +132,9 @@ class _Segments:
         self.fun = newton_system(problem)
         self.kw = dict(x_scale=scales.x, lam_scale=lam_scale, r_scale=scales.r, options=newton)
         self.cache: dict[tuple[int, float], tuple[np.ndarray, float, float]] = {}
-        self.tangents: dict[tuple[int, float], np.ndarray] = {}
+        self.tangents: dict[tuple[int, float], tuple[np.ndarray, float]] = {}
         self.solves = 0
+        self.iterations = 0  # Newton's, over the solves
 
     def point(self, k: int, t: float) -> tuple[np.ndarray, float, float]:
         """(x, omega, achieved residual) at t in [0, 1] of segment k."""
@@ -128,43 +147,85 @@ class _Segments:
             chord = zb - za
             zp = za + t * chord
             adapt = self.problem.adaptation
+            start = self._predict(k, t)
             for _ in range(adapt.max_redo if adapt is not None else 1):
-                xs, ls, _, res = correct(self.fun, zp[:-1], float(zp[-1]), (chord[:-1], float(chord[-1])), **self.kw,
-                                         select=self.problem.unknowns())
+                try:
+                    xs, ls, it, res = correct(self.fun, zp[:-1], float(zp[-1]), (chord[:-1], float(chord[-1])),
+                                              **self.kw, select=self.problem.unknowns(), start=start)
+                except ConvergenceError:
+                    if start is None:
+                        raise
+                    start = None  # from the chord, as the sweep's corrector starts
+                    xs, ls, it, res = correct(self.fun, zp[:-1], float(zp[-1]), (chord[:-1], float(chord[-1])),
+                                              **self.kw, select=self.problem.unknowns())
                 self.solves += 1
+                self.iterations += it
                 if adapt is None or not adapt.after_converge(xs, ls):
                     break
             self.cache[k, t] = (xs, float(ls), float(res))
         return self.cache[k, t]
 
+    def _predict(self, k: int, t: float) -> tuple[np.ndarray, float] | None:
+        """Newton's first iterate at t of segment k: the cubic through the nearest points solved on
+        either side, with the branch's derivative at those that have it (Hermite; a quadratic with
+        one, None with neither: the chord).  z(t) . chord is linear in t on the branch and in every
+        such interpolant, so the iterate lies on the corrector's hyperplane.  Near the peak the
+        interpolant's error is the branch's third derivative times the cell's width cubed: the
+        corrector there takes 1-2 Newton iterations where it takes 3-4 from the chord."""
+        known = [u for (kk, u) in self.cache if kk == k] + [0.0, 1.0]
+        a, b = max(u for u in known if u < t), min(u for u in known if u > t)
+        da, db = self.tangents.get((k, a)), self.tangents.get((k, b))
+        if da is None and db is None:
+            return None
+        (xa, la, _), (xb, lb, _) = self.point(k, a), self.point(k, b)
+        h, u = b - a, (t - a) / (b - a)
+        za, zb = np.append(xa, la), np.append(xb, lb)
+        if da is not None and db is not None:  # Hermite's cubic
+            ma, mb = h * np.append(*da), h * np.append(*db)
+            z = ((2 * u ** 3 - 3 * u ** 2 + 1) * za + (u ** 3 - 2 * u ** 2 + u) * ma
+                 + (-2 * u ** 3 + 3 * u ** 2) * zb + (u ** 3 - u ** 2) * mb)
+        elif da is not None:  # the quadratic with z(a), z'(a) and z(b)
+            ma = h * np.append(*da)
+            z = za + u * ma + u ** 2 * (zb - za - ma)
+        else:  # with z(a), z(b) and z'(b)
+            mb = h * np.append(*db)
+            z = za + u * (2 * (zb - za) - mb) + u ** 2 * (mb - (zb - za))
+        return z[:-1], float(z[-1])
+
     def derivative(self, k: int, t: float) -> np.ndarray:
-        """dx/dt at t in [0, 1) of segment k: the derivative of the smooth piece of the branch
+        """dx/dt at t in [0, 1] of segment k: the derivative of the smooth piece of the branch
         through that point (arclength.hyperplane_derivative along the chord of segment k)."""
         if (k, t) not in self.tangents:
             xs, ls, _ = self.point(k, t)
             chord = (self.x[k + 1] - self.x[k], float(self.lam[k + 1] - self.lam[k]))
             self.tangents[k, t] = hyperplane_derivative(self.fun, xs, ls, chord, x_scale=self.kw["x_scale"],
                                                         lam_scale=self.kw["lam_scale"],
-                                                        select=self.problem.unknowns())[0]
-        return self.tangents[k, t]
+                                                        select=self.problem.unknowns())
+        return self.tangents[k, t][0]
 
 
 def locate_peaks(problem: Problem, x: np.ndarray, lam: np.ndarray, residual: np.ndarray, records: list[PointRecord],
                  outputs: dict, *, scales: Scales, lam_scale: float, newton: NewtonOptions, grid: int = 4,
-                 omega_rtol: float = 1e-8) -> dict[str, Peak]:
+                 omega_rtol: float = 1e-8, amplitude_rtol: np.ndarray | None = None) -> dict[str, Peak]:
     """The peak of every output (name -> index or recovery row) on a branch of ``problem`` (points
     x (num_points, n) at lam, with their achieved residuals); the branch points solved between the
-    recorded ones are shared by the outputs."""
+    recorded ones are shared by the outputs.
+
+    ``amplitude_rtol`` (num_points, num_outputs): the search of an output whose largest point is i
+    stops once nothing can beat the best point solved by more than amplitude_rtol[i, output] of its
+    amplitude (None: by anything; the point kept is then within omega_rtol / 2 of the top)."""
     segments = _Segments(problem, x, lam, residual, scales=scales, lam_scale=lam_scale, newton=newton)
     peaks = {}
-    for name, dof in outputs.items():
+    for j, (name, dof) in enumerate(outputs.items()):
         before = segments.solves
-        peaks[name] = _locate(segments, records, dof, grid=grid, omega_rtol=omega_rtol)
+        rtol = np.zeros(len(x)) if amplitude_rtol is None else np.asarray(amplitude_rtol)[:, j]
+        peaks[name] = _locate(segments, records, dof, grid=grid, omega_rtol=omega_rtol, amplitude_rtol=rtol)
         peaks[name] = replace(peaks[name], solves=segments.solves - before)
+    log.debug("peaks: %d solves, %d Newton iterations", segments.solves, segments.iterations)
     return peaks
 
 
-def _locate(segments: _Segments, records, dof, *, grid: int, omega_rtol: float) -> Peak:
+def _locate(segments: _Segments, records, dof, *, grid: int, omega_rtol: float, amplitude_rtol: np.ndarray) -> Peak:
     problem, x, lam = segments.problem, segments.x, segments.lam
     h = problem.harmonics
     amp = np.array([output_amplitude(xi, dof, h) for xi in x])
@@ -173,29 +234,106 @@ def _locate(segments: _Segments, records, dof, *, grid: int, omega_rtol: float) 
         return Peak(float(lam[i]), float(amp[i]), located=False, edge=True,
                     reason="largest amplitude at the end of the range: an edge, not a peak")
     adapt = problem.adaptation
+    gain = 1.0 + float(amplitude_rtol[i])  # what the top may exceed the best point by, at most
     best = (float(amp[i]), float(lam[i]), float(segments.residual[i]), x[i])  # amplitude, omega, residual, x
     A: dict[float, float] = {}  # s -> amplitude of every point solved (s = k + t: t along segment k)
     D: dict[float, float] = {}  # s -> |dA/ds| there, of the smooth piece through the point
     states: dict[float, bytes] = {}  # s -> the contact states there, every sample of every group
+
+    A_x: dict[float, np.ndarray] = {}  # s -> the solution there
+    omega_at: dict[float, float] = {}
+
+    def state(s: float) -> bytes:
+        """The contact states at s (solved), every sample of every group: only the branch and bound
+        asks (an evaluation of the point's contact forces)."""
+        if s not in states:
+            states[s] = b"".join(c.state_t.tobytes()
+                                 for c in problem.evaluate(A_x[s], omega_at[s], jacobian=False).contact)
+        return states[s]
 
     def value(s: float) -> None:
         """Solve the point at s; every point solved competes for the best."""
         nonlocal best
         k = min(int(np.floor(s)), amp.size - 2)
         xs, ls, res = segments.point(k, float(s - k))
+        A_x[s], omega_at[s] = xs, ls
         A[s] = a = output_amplitude(xs, dof, h)
         if KINK_BOUND == "pieces":
             try:
                 D[s] = abs(output_amplitude_derivative(xs, segments.derivative(k, float(s - k)), dof, h))
             except (np.linalg.LinAlgError, RuntimeError):  # singular bordered system (a bifurcation)
                 D[s] = np.nan  # bounded as steeply as anywhere (below)
-        states[s] = b"".join(c.state_t.tobytes() for c in problem.evaluate(xs, ls, jacobian=False).contact)
         if a > best[0]:
             best = (a, ls, res, xs)
 
     def restore(lo: int, hi: int) -> None:
         if adapt is not None:
             adapt.restore(np.logical_or.reduce([r.active for r in records[lo:hi + 1]]))
+
+    def rise(s: float, k: int) -> float:
+        """dA/dt at s (solved) in the parameter t of segment k: at a branch point between two
+        segments the slope differs by the ratio of their chords."""
+        return output_amplitude_derivative(A_x[s], segments.derivative(k, float(s - k)), dof, h)
+
+    def model_top() -> tuple[float, float]:
+        """(reach, s): the most A can reach over [i - 1, i + 1] by the points solved there, and where
+        to solve next.  In each cell, from the amplitudes and slopes (of the smooth pieces) at its
+        ends: the larger of Hermite's cubic, raised by its departure from the parabola through its
+        ends and its left slope ((4 / 27) |m0 + m1 - 2 (a1 - a0)|: the cubic's own error is of higher
+        order wherever A is near a parabola on the cell, as at a smooth top), and the meeting point
+        of the two tangents where they rise into the cell (a kink at the top: exact for two straight
+        pieces).  Raised further by SAFETY times the kinks seen: a cell whose chord's slope lies
+        outside its ends' slopes holds a kink (A' is monotone on a smooth top), whose jump is at least
+        that distance; a kink of jump J in a cell of width w lifts A above the pieces by at most
+        J w / 4.  Where to solve next: at that top in the cell that reaches highest, or its middle
+        where the top is at an end."""
+        at = sorted(u for u in A if i - 1 <= u <= i + 1)
+        cells = []
+        jump = 0.0  # the largest kink seen, in dA/ds
+        for u, v in zip(at[:-1], at[1:]):
+            k = int(np.floor(u))
+            w = v - u
+            d0, d1, chord = rise(u, k), rise(v, k), (A[v] - A[u]) / w
+            jump = max(jump, d1 - d0, min(d0, d1) - chord, chord - max(d0, d1))
+            cells.append((u, w, A[u], A[v], w * d0, w * d1))
+        top = (-np.inf, float(i))
+        for u, w, a0, a1, m0, m1 in cells:
+            # p(tau) on [0, 1] and the roots of p'(tau) = qa tau^2 + qb tau + qc inside it
+            qa, qb, qc = 6 * a0 + 3 * m0 - 6 * a1 + 3 * m1, -6 * a0 - 4 * m0 + 6 * a1 - 2 * m1, m0
+            taus = [0.0, 1.0] + [float(r.real) for r in np.roots([qa, qb, qc])
+                                 if abs(r.imag) < 1e-12 and 0.0 < r.real < 1.0]
+            p = [((2 * t ** 3 - 3 * t ** 2 + 1) * a0 + (t ** 3 - 2 * t ** 2 + t) * m0
+                  + (-2 * t ** 3 + 3 * t ** 2) * a1 + (t ** 3 - t ** 2) * m1) for t in taus]
+            j = int(np.argmax(p))
+            reach, tau = p[j] + 4 / 27 * abs(m0 + m1 - 2 * (a1 - a0)), (taus[j] if 0.0 < taus[j] < 1.0 else 0.5)
+            if m0 > 0.0 > m1:
+                tent = (a1 - a0 - m1) / (m0 - m1)
+                if 0.0 < tent < 1.0 and a0 + m0 * tent > reach:
+                    reach, tau = a0 + m0 * tent, tent
+            reach += SAFETY * jump * w / 4
+            if reach > top[0]:
+                top = (reach, u + tau * w)
+        return top
+
+    def by_model() -> bool:
+        """The top located by the cubics alone (True) once nothing they can reach beats the best
+        point solved by more than the tolerance: A is then smooth to the tolerance near the top (a
+        sampled law's scallops shallower than it).  Else (scallops deeper than the tolerance, kinks,
+        a top beyond the neighbours) the branch and bound goes on from the points solved, after
+        MODEL_STEPS.  Only where A rises into the range at both ends: else its top may lie beyond."""
+        try:
+            if rise(float(i - 1), i - 1) <= 0.0 or rise(float(i + 1), i) >= 0.0:
+                return False
+            for _ in range(MODEL_STEPS):
+                reach, s = model_top()
+                if reach <= best[0] * gain:
+                    return True
+                if s in A:
+                    return False
+                value(s)
+        except (np.linalg.LinAlgError, RuntimeError):  # a tangent refused (a bifurcation): no slopes
+            pass
+        return False
 
     # the width in s below which a cell of segment k is not split: omega_rtol / 2 of omega, so that
     # the point kept lies within that of the top, and two searches of the branch agree to omega_rtol
@@ -204,6 +342,10 @@ def _locate(segments: _Segments, records, dof, *, grid: int, omega_rtol: float) 
     lo, hi = i - 1, i + 1  # the segments searched: from point lo to point hi
     try:
         restore(lo, hi)
+        for k in (i - 1, i, i + 1):
+            value(float(k))
+        if gain > 1.0 and by_model():
+            return Peak(best[1], best[0], located=True, residual=best[2], x=np.array(best[3]), tolerance=gain - 1.0)
         for k in range(lo, hi):
             for j in range(grid + (k == hi - 1)):
                 value(k + j / grid)
@@ -219,7 +361,7 @@ def _locate(segments: _Segments, records, dof, *, grid: int, omega_rtol: float) 
             # an end).  Any other cell may hold a kink, up to which A may rise as steeply as it
             # does anywhere.
             near = _with_neighbours(cell)
-            smooth = np.array([states[u] == states[v] for u, v in zip(at[:-1], at[1:])]) & (ds * grid < 0.75)
+            smooth = np.array([state(u) == state(v) for u, v in zip(at[:-1], at[1:])]) & (ds * grid < 0.75)
             # A cell that may hold kinks: A rises in it at most SAFETY times as steeply as the
             # pieces through its ends and its neighbours' far ends do, or as across them
             if KINK_BOUND == "pieces":
@@ -236,7 +378,7 @@ def _locate(segments: _Segments, records, dof, *, grid: int, omega_rtol: float) 
             below = a[0] + SAFETY * slope / grid if lo > 0 else -np.inf
             above = a[-1] + SAFETY * slope / grid if hi < amp.size - 1 else -np.inf
             c = int(np.argmax(reach))
-            if max(reach[c], below, above) <= best[0]:
+            if max(reach[c], below, above) <= best[0] * gain:
                 break
             if below >= max(reach[c], above):  # the range goes on by a segment below
                 lo -= 1
@@ -253,7 +395,7 @@ def _locate(segments: _Segments, records, dof, *, grid: int, omega_rtol: float) 
     except (ConvergenceError, ContinuationError, np.linalg.LinAlgError, RuntimeError) as exc:
         log.warning("peak not located between omega = %.9g and %.9g: %s", lam[lo], lam[hi], exc)
         return Peak(float(lam[i]), float(amp[i]), located=False, reason=str(exc))
-    return Peak(best[1], best[0], located=True, residual=best[2], x=np.array(best[3]))
+    return Peak(best[1], best[0], located=True, residual=best[2], x=np.array(best[3]), tolerance=gain - 1.0)
 
 
 def _with_neighbours(v: np.ndarray) -> np.ndarray:

@@ -303,10 +303,11 @@ def solve_adaptive(fun: Callable, x0: np.ndarray, lam: float, *, adapt: "Adaptiv
 
 def correct(fun: Callable, x_p: np.ndarray, lam_p: float, direction: tuple[np.ndarray, float], *, x_scale,
             lam_scale: float, r_scale: float, options: NewtonOptions = NewtonOptions(),
-            select: np.ndarray | None = None):
+            select: np.ndarray | None = None, start: tuple[np.ndarray, float] | None = None):
     """Solve R(x, lam) = 0 on the hyperplane through (x_p, lam_p) normal to ``direction`` = (dx, dlam)
     (in the scaled variables of the continuation), as the corrector of a step does.
     ``select``: the coefficients of x solved (Adaptive.unknowns; None: all), the others zero.
+    ``start``: Newton's first iterate (x, lam), if not (x_p, lam_p).
 
     Returns (x, lam, iterations, achieved max|R|/r_scale); raises ConvergenceError.  This meets
     the branch where it crosses the hyperplane, whether it is a graph over lam there or folds.
@@ -315,7 +316,8 @@ def correct(fun: Callable, x_p: np.ndarray, lam_p: float, direction: tuple[np.nd
     g = _scaled(fun, space, lam_scale, r_scale)
     t = np.append(space.sub(np.asarray(direction[0], float)), direction[1] / lam_scale)
     t = t / np.linalg.norm(t)
-    y, mu, it, res = _corrector(g, space.sub(x_p), lam_p / lam_scale, t, options, lam_scale)
+    z0 = None if start is None else np.append(space.sub(np.asarray(start[0], float)), start[1] / lam_scale)
+    y, mu, it, res = _corrector(g, space.sub(x_p), lam_p / lam_scale, t, options, lam_scale, z0)
     return space.full(y), mu * lam_scale, it, res
 
 
@@ -383,15 +385,16 @@ class ContinuationPoint:
     ds_next: float = 0.0  # the step the continuation takes from this point (to resume it exactly)
 
 
-def _corrector(g, y_p, mu_p, t, opts: NewtonOptions, lam_scale: float = 1.0):
-    """Newton on [R(y, mu); t.(z - z_p)] = 0.  Returns (y, mu, iterations, achieved max|r|) or raises."""
+def _corrector(g, y_p, mu_p, t, opts: NewtonOptions, lam_scale: float = 1.0, z0: np.ndarray | None = None):
+    """Newton on [R(y, mu); t.(z - z_p)] = 0 from z0 (None: z_p).  Returns (y, mu, iterations,
+    achieved max|r|) or raises."""
     z_p = np.append(y_p, mu_p)
 
     def F(z):
         R, J, dl = g(z[:-1], z[-1])
         return np.append(R, t @ (z - z_p)), bordered(J, dl, t)
 
-    z, it, res = _damped_newton(F, z_p.copy(), opts, "corrector", lambda z: z[-1] * lam_scale)
+    z, it, res = _damped_newton(F, z_p.copy() if z0 is None else z0, opts, "corrector", lambda z: z[-1] * lam_scale)
     return z[:-1], z[-1], it, res
 
 
