@@ -311,12 +311,18 @@ def reduction_of(scene: Scene, method: str | None = None, rom_options: RomOption
                  offline: str = "replicated") -> tuple[str, RomOptions]:
     """The method and options given (``rom_options`` whole, or ``modes``, ``tvd``, ``tvd_kind`` one
     by one, as the command line gives them), else the scene's [reduction] table's (full order
-    without one)."""
+    without one).  A method that cannot take the options is refused here (rom.check_options), before
+    any model is built: a continuum's meshing and assembly would otherwise come first."""
+    from .rom.reductors import check_options
+
     red = scene.reduction
     if rom_options is None:
         rom_options = RomOptions(modes=red.modes if modes is None else modes, tvd=red.tvd if tvd is None else tvd,
                                  tvd_kind=red.tvd_kind if tvd_kind is None else tvd_kind, offline=offline)
-    return red.method if method is None else method, rom_options
+    method = red.method if method is None else method
+    if method != "full":
+        check_options(method, rom_options)
+    return method, rom_options
 
 
 def solve_scene(scene: Scene, *, progress: bool = False, method: str | None = None,
