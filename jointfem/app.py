@@ -517,15 +517,11 @@ def software() -> dict:
     import platform
     import subprocess
 
-    from importlib.metadata import PackageNotFoundError, version
-
     import scipy
 
-    try:
-        mine = version("jointfem")
-    except PackageNotFoundError:  # run from a source tree that was not installed
-        mine = "unknown"
-    out = {"jointfem": mine, "python": platform.python_version(), "numpy": np.__version__,
+    from . import installed_version
+
+    out = {"jointfem": installed_version(), "python": platform.python_version(), "numpy": np.__version__,
            "scipy": scipy.__version__}
     try:
         root = Path(__file__).resolve().parents[1]

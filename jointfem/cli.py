@@ -311,10 +311,10 @@ def _stability_arg(p) -> None:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from . import __version__
+    from . import installed_version
 
     p = argparse.ArgumentParser(prog="jointfem", description="Nonlinear vibration of jointed structures (HBM).")
-    p.add_argument("--version", action="version", version=f"jointfem {__version__}")
+    p.add_argument("--version", action="version", version=f"jointfem {installed_version()}")
     sub = p.add_subparsers(dest="command", required=True)
     f = sub.add_parser("frf", help="nonlinear frequency response of a scene")
     f.add_argument("scene", help="scene file (TOML)")

@@ -592,3 +592,27 @@ def test_modes_0_is_refused_before_the_model_is_built(tmp_path, capsys, monkeypa
     assert cli.main(["compare", scene, "--methods", "full,penalty:0", "--out", str(out), "--quiet"]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "penalty: modes = 0" in err and not out.exists(), err
+
+
+def test_version_is_the_installed_distributions(capsys, monkeypatch):
+    """Issue 50, item 12: ``jointfem --version`` (and summary.json's software) give the version of the
+    installed distribution (importlib.metadata, from pyproject.toml), not a second copy of it in the
+    package that can drift: here the metadata is made to say 9.8.7, and then that nothing is installed."""
+    from importlib import metadata
+
+    from jointfem import app, cli
+
+    real = metadata.version
+    monkeypatch.setattr(metadata, "version", lambda name: "9.8.7" if name == "jointfem" else real(name))
+    with pytest.raises(SystemExit) as exc:
+        cli.main(["--version"])
+    assert exc.value.code == 0 and capsys.readouterr().out == "jointfem 9.8.7\n"
+    assert app.software()["jointfem"] == "9.8.7"
+
+    def missing(name):
+        raise metadata.PackageNotFoundError(name)
+
+    monkeypatch.setattr(metadata, "version", missing)
+    with pytest.raises(SystemExit):
+        cli.main(["--version"])
+    assert capsys.readouterr().out == "jointfem unknown\n"
