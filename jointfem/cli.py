@@ -189,7 +189,8 @@ def cmd_force(args) -> int:
         resp, stopped = exc.response, exc
     if not parallel.is_root():
         return 0
-    summary = app.write_force(resp, scene, out, method=method, rom_options=options)
+    summary = app.write_force(resp, scene, out, method=method, rom_options=options, structure=structure,
+                              rom=None if method == "full" else model)
     if stopped is not None:
         print(f"jointfem: force sweep incomplete: {stopped}. The {summary['num_points']} converged points are in "
               f"{out}/ (summary.json status \"incomplete\"; go on with --resume {out})", file=sys.stderr)
@@ -377,18 +378,20 @@ def build_parser() -> argparse.ArgumentParser:
     _set_arg(nm)
     nm.set_defaults(func=cmd_nma)
     ex = sub.add_parser("export", help="ParaView files (VTU, XDMF) of a result folder at one branch point")
-    ex.add_argument("folder", help="a folder written by `jointfem frf`")
+    ex.add_argument("folder", help="a folder written by `jointfem frf`, `jointfem nma` or `jointfem force`")
     grp = ex.add_mutually_exclusive_group()
-    grp.add_argument("--point", default="peak", help="'peak' (default) or a branch point index")
-    grp.add_argument("--omega", type=float, help="the branch point nearest to this omega, rad/s")
+    grp.add_argument("--point", default="peak", help="'peak' (default: the largest amplitude) or a branch point index")
+    grp.add_argument("--omega", type=float, help="the branch point nearest to this omega, rad/s (not for a force "
+                                                  "sweep, all at one omega)")
     ex.add_argument("--out", help="output folder (default FOLDER/export)")
     ex.add_argument("--quiet", action="store_true")
     ex.set_defaults(func=cmd_export)
     pp = sub.add_parser("plot", help="contact-state pictures of a result folder (PNG, off-screen)")
-    pp.add_argument("folder", help="a folder written by `jointfem frf` or `jointfem nma`")
+    pp.add_argument("folder", help="a folder written by `jointfem frf`, `jointfem nma` or `jointfem force`")
     grp = pp.add_mutually_exclusive_group()
-    grp.add_argument("--point", default="peak", help="'peak' (default) or a branch point index")
-    grp.add_argument("--omega", type=float, help="the branch point nearest to this omega, rad/s")
+    grp.add_argument("--point", default="peak", help="'peak' (default: the largest amplitude) or a branch point index")
+    grp.add_argument("--omega", type=float, help="the branch point nearest to this omega, rad/s (not for a force "
+                                                  "sweep, all at one omega)")
     pp.add_argument("--quiet", action="store_true")
     pp.set_defaults(func=cmd_plot)
     c = sub.add_parser("compare", help="every ROM against full order: sizes, times, errors (CSV, Markdown, PNG)")
