@@ -28,11 +28,11 @@ def _reduction(args, scene, method: str | None = None, *,
     (app.reduction_of)."""
     from .app import reduction_of
 
-    method, options = reduction_of(scene, method, modes=args.modes, tvd=args.tvd, tvd_kind=args.tvd_kind,
-                                   offline=offline)
-    if options.modes < 0 or options.tvd < 0:
-        raise RomError(f"--modes = {options.modes} and --tvd = {options.tvd} must be >= 0")
-    return method, options
+    # (the scene's [reduction] counts are checked >= 0 where it is read: a negative count is a flag's)
+    for flag, value in (("--modes", args.modes), ("--tvd", args.tvd)):
+        if value is not None and value < 0:
+            raise RomError(f"{flag} = {value}: must be >= 0")
+    return reduction_of(scene, method, modes=args.modes, tvd=args.tvd, tvd_kind=args.tvd_kind, offline=offline)
 
 
 def _count(least: int):
