@@ -6,7 +6,19 @@ results -> plots.  ``jointfem.app`` is the library layer the command line and th
 """
 from .scene import Scene, SceneError, create_structure, load_scene  # noqa: F401
 
-__version__ = "0.1.0"
+
+def installed_version() -> str:
+    """The version of the installed distribution (pyproject.toml, the one place it is written), or
+    "unknown" when run from a source tree that was not installed."""
+    from importlib import metadata
+
+    try:
+        return metadata.version("jointfem")
+    except metadata.PackageNotFoundError:
+        return "unknown"
+
+
+__version__ = installed_version()
 
 
 def compute_frf(model, options, **kw):

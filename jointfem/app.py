@@ -311,12 +311,18 @@ def reduction_of(scene: Scene, method: str | None = None, rom_options: RomOption
                  offline: str = "replicated") -> tuple[str, RomOptions]:
     """The method and options given (``rom_options`` whole, or ``modes``, ``tvd``, ``tvd_kind`` one
     by one, as the command line gives them), else the scene's [reduction] table's (full order
-    without one)."""
+    without one).  A method that cannot take the options is refused here (rom.check_options), before
+    any model is built: a continuum's meshing and assembly would otherwise come first."""
+    from .rom.reductors import check_options
+
     red = scene.reduction
     if rom_options is None:
         rom_options = RomOptions(modes=red.modes if modes is None else modes, tvd=red.tvd if tvd is None else tvd,
                                  tvd_kind=red.tvd_kind if tvd_kind is None else tvd_kind, offline=offline)
-    return red.method if method is None else method, rom_options
+    method = red.method if method is None else method
+    if method != "full":
+        check_options(method, rom_options)
+    return method, rom_options
 
 
 def solve_scene(scene: Scene, *, progress: bool = False, method: str | None = None,
@@ -467,7 +473,7 @@ def load_force_resume(folder: Path, scene: Scene, method: str, rom_options: RomO
 WRITES = {
     "frf": ("frf.csv", "branch.npz", "summary.json", "shape.npz", "frf.png"),
     "nma": ("backbone.csv", "branch.npz", "summary.json", "shape.npz", "backbone.png", "frf_synthesized.png"),
-    "force": ("force.csv", "branch.npz", "summary.json", "force.png"),
+    "force": ("force.csv", "branch.npz", "summary.json", "shape.npz", "force.png"),
     "compare": ("compare.csv", "compare.md", "compare_frf.png", "compare_pareto.png", "compare_backbone.png"),
     "modes": ("modes.csv", "modes.npz"),
     "plot": ("states_branch.png", "interface_*.png", "shape_*.png"),
@@ -511,15 +517,11 @@ def software() -> dict:
     import platform
     import subprocess
 
-    from importlib.metadata import PackageNotFoundError, version
-
     import scipy
 
-    try:
-        mine = version("jointfem")
-    except PackageNotFoundError:  # run from a source tree that was not installed
-        mine = "unknown"
-    out = {"jointfem": mine, "python": platform.python_version(), "numpy": np.__version__,
+    from . import installed_version
+
+    out = {"jointfem": installed_version(), "python": platform.python_version(), "numpy": np.__version__,
            "scipy": scipy.__version__}
     try:
         root = Path(__file__).resolve().parents[1]
@@ -578,10 +580,14 @@ def write_modes(modes: dict, structure: Structure, out: Path) -> None:
     atomic_write(Path(out) / "modes.npz", npz)
 
 
-def write_force(response, scene: Scene, out: Path, *, method: str, rom_options: RomOptions | None = None) -> dict:
+def write_force(response, scene: Scene, out: Path, *, method: str, rom_options: RomOptions | None = None,
+                structure: Structure | None = None, rom: Reduction | None = None) -> dict:
     """A force sweep's folder: force.csv (scale, the scene's first harmonic force times it, each
-    output's first-harmonic amplitude), branch.npz, summary.json and force.png (log-log)."""
+    output's first-harmonic amplitude), branch.npz, summary.json, force.png (log-log) and, for a
+    continuum ``structure``, shape.npz.  branch.npz holds what a sweep's does for `jointfem plot`
+    and `export` (the output layout, the pairs, omega per point), and the force per point."""
     from .plots import pyplot
+    from .results import output_arrays
 
     out = Path(out)
     amps = [a for a in scene_force_amplitudes(scene) if a]
@@ -598,11 +604,22 @@ def write_force(response, scene: Scene, out: Path, *, method: str, rom_options: 
 
     def npz(p):
         with open(p, "wb") as fh:
-            np.savez_compressed(fh, scale=response.scale, U=response.U, states=response.states,
-                                omega=response.omega, H=response.harmonics.H, N=response.harmonics.N,
+            q = response.U.shape[1] // response.harmonics.num_hc
+            np.savez_compressed(fh, scale=response.scale, force_N=response.scale * F1, U=response.U,
+                                states=response.states, omega=np.full(response.scale.size, response.omega),
+                                H=response.harmonics.H, N=response.harmonics.N, num_dofs=q,
+                                output_names=np.array(names, dtype=str), **output_arrays(response.outputs, q),
+                                pair_names=np.array(response.pair_names, dtype=str),
+                                **({"pair_coords": np.asarray(response.pair_coords)}
+                                   if response.pair_coords is not None else {}),
+                                **({"pair_area_m2": np.asarray(response.pair_areas)}
+                                   if response.pair_areas is not None else {}),
+                                layout=np.array("harmonic-major: U[j*n + dof], j=0 const, 2k-1 cos k, 2k sin k"),
                                 **{k: np.asarray(v) for k, v in response.info["arrays"].items()})
 
     atomic_write(out / "branch.npz", npz)
+    if structure is not None:
+        save_shape(structure, rom, out)
     summary = {"scene": str(scene.path), "scene_data": scene.data, "method": method, "analysis": "force",
                "omega_rad_s": response.omega, "freq_Hz": response.omega / (2 * np.pi),
                "harmonics": response.harmonics.H, "samples": response.harmonics.N,

@@ -28,11 +28,11 @@ def _reduction(args, scene, method: str | None = None, *,
     (app.reduction_of)."""
     from .app import reduction_of
 
-    method, options = reduction_of(scene, method, modes=args.modes, tvd=args.tvd, tvd_kind=args.tvd_kind,
-                                   offline=offline)
-    if options.modes < 0 or options.tvd < 0:
-        raise RomError(f"--modes = {options.modes} and --tvd = {options.tvd} must be >= 0")
-    return method, options
+    # (the scene's [reduction] counts are checked >= 0 where it is read: a negative count is a flag's)
+    for flag, value in (("--modes", args.modes), ("--tvd", args.tvd)):
+        if value is not None and value < 0:
+            raise RomError(f"{flag} = {value}: must be >= 0")
+    return reduction_of(scene, method, modes=args.modes, tvd=args.tvd, tvd_kind=args.tvd_kind, offline=offline)
 
 
 def _count(least: int):
@@ -189,7 +189,8 @@ def cmd_force(args) -> int:
         resp, stopped = exc.response, exc
     if not parallel.is_root():
         return 0
-    summary = app.write_force(resp, scene, out, method=method, rom_options=options)
+    summary = app.write_force(resp, scene, out, method=method, rom_options=options, structure=structure,
+                              rom=None if method == "full" else model)
     if stopped is not None:
         print(f"jointfem: force sweep incomplete: {stopped}. The {summary['num_points']} converged points are in "
               f"{out}/ (summary.json status \"incomplete\"; go on with --resume {out})", file=sys.stderr)
@@ -311,10 +312,10 @@ def _stability_arg(p) -> None:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from . import __version__
+    from . import installed_version
 
     p = argparse.ArgumentParser(prog="jointfem", description="Nonlinear vibration of jointed structures (HBM).")
-    p.add_argument("--version", action="version", version=f"jointfem {__version__}")
+    p.add_argument("--version", action="version", version=f"jointfem {installed_version()}")
     sub = p.add_subparsers(dest="command", required=True)
     f = sub.add_parser("frf", help="nonlinear frequency response of a scene")
     f.add_argument("scene", help="scene file (TOML)")
@@ -377,18 +378,20 @@ def build_parser() -> argparse.ArgumentParser:
     _set_arg(nm)
     nm.set_defaults(func=cmd_nma)
     ex = sub.add_parser("export", help="ParaView files (VTU, XDMF) of a result folder at one branch point")
-    ex.add_argument("folder", help="a folder written by `jointfem frf`")
+    ex.add_argument("folder", help="a folder written by `jointfem frf`, `jointfem nma` or `jointfem force`")
     grp = ex.add_mutually_exclusive_group()
-    grp.add_argument("--point", default="peak", help="'peak' (default) or a branch point index")
-    grp.add_argument("--omega", type=float, help="the branch point nearest to this omega, rad/s")
+    grp.add_argument("--point", default="peak", help="'peak' (default: the largest amplitude) or a branch point index")
+    grp.add_argument("--omega", type=float, help="the branch point nearest to this omega, rad/s (not for a force "
+                                                  "sweep, all at one omega)")
     ex.add_argument("--out", help="output folder (default FOLDER/export)")
     ex.add_argument("--quiet", action="store_true")
     ex.set_defaults(func=cmd_export)
     pp = sub.add_parser("plot", help="contact-state pictures of a result folder (PNG, off-screen)")
-    pp.add_argument("folder", help="a folder written by `jointfem frf` or `jointfem nma`")
+    pp.add_argument("folder", help="a folder written by `jointfem frf`, `jointfem nma` or `jointfem force`")
     grp = pp.add_mutually_exclusive_group()
-    grp.add_argument("--point", default="peak", help="'peak' (default) or a branch point index")
-    grp.add_argument("--omega", type=float, help="the branch point nearest to this omega, rad/s")
+    grp.add_argument("--point", default="peak", help="'peak' (default: the largest amplitude) or a branch point index")
+    grp.add_argument("--omega", type=float, help="the branch point nearest to this omega, rad/s (not for a force "
+                                                  "sweep, all at one omega)")
     pp.add_argument("--quiet", action="store_true")
     pp.set_defaults(func=cmd_plot)
     c = sub.add_parser("compare", help="every ROM against full order: sizes, times, errors (CSV, Markdown, PNG)")

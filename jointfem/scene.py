@@ -8,6 +8,7 @@ See docs/scenes.md for the keys of each kind.
 """
 from __future__ import annotations
 
+import logging
 import math
 import tomllib
 from dataclasses import dataclass
@@ -441,26 +442,61 @@ def _normal_preload(t: _Table, has_normal: bool, kn: float) -> float:
     return -kn * gap if gap > 0 else N0
 
 
-SEMIDEFINITE_DENSE = 3000  # K up to this size is checked whole (a dense eigvalsh: about 1 s)
+SEMIDEFINITE_DENSE = 500  # up to this size a matrix's eigenvalues are computed whole (dense eigvalsh: 0.02 s)
+SEMIDEFINITE_TOL = 1e-6  # negative eigenvalues down to this fraction of the largest are round-off
 
 
-def _check_semidefinite(t: _Table, key: str, K) -> None:
-    """A stiffness matrix is positive semi-definite (singular where the model floats free).  A
-    negative diagonal entry disproves it at any size (x = e_i gives x^T K x < 0), which catches a
-    negative-definite K; up to SEMIDEFINITE_DENSE DOFs its smallest eigenvalue is checked too, to
-    -1e-6 of its largest.  A singular K exported with 8 significant digits has entries off by up to
-    5e-9 of themselves, which moves its zero eigenvalues by up to |dK|_F <= 5e-9 sqrt(n) |K|_2,
-    2.7e-7 of the largest at n = 3000: a free-floating model must not be refused for that."""
-    d = K.diagonal()
+def _check_semidefinite(t: _Table, key: str, A, what: str) -> None:
+    """A stiffness or mass matrix is positive semi-definite (a stiffness singular where the model
+    floats free), to -SEMIDEFINITE_TOL of its largest eigenvalue.  A singular K exported with 8
+    significant digits has entries off by up to 5e-9 of themselves, which moves its zero
+    eigenvalues by up to |dK|_F <= 5e-9 sqrt(n) |K|_2, 2.7e-7 of the largest at n = 3000: a
+    free-floating model must not be refused for that.  A negative diagonal entry disproves it at
+    once (x = e_i gives x^T A x < 0).  Up to SEMIDEFINITE_DENSE DOFs the smallest eigenvalue is
+    computed; above, the eigenvalues below the bound are counted by the inertia of A + tol I
+    (_eigenvalues_below): a sparse factorisation, as the modes' shift-invert makes anyway."""
+    d = A.diagonal()
     if np.any(d < 0):
         i = int(np.argmin(d))
-        t.fail(key, t.data[key], f"has a negative diagonal entry ({d[i]:.6g} at row {i}): not a stiffness matrix "
-                                 f"(x^T K x < 0 for x = e_{i})")
-    if K.shape[0] <= SEMIDEFINITE_DENSE:
-        lam = np.linalg.eigvalsh(K.toarray())
-        if lam[0] < -1e-6 * max(abs(lam[-1]), 1e-300):
+        t.fail(key, t.data[key], f"has a negative diagonal entry ({d[i]:.6g} at row {i}): not a {what} matrix "
+                                 f"(x^T {key} x < 0 for x = e_{i})")
+    if A.shape[0] <= SEMIDEFINITE_DENSE:
+        lam = np.linalg.eigvalsh(A.toarray())
+        if lam[0] < -SEMIDEFINITE_TOL * max(abs(lam[-1]), 1e-300):
             t.fail(key, t.data[key], f"is not positive semi-definite: its smallest eigenvalue is {lam[0]:.6g} "
                                      f"(largest {lam[-1]:.6g})")
+        return
+    import scipy.sparse.linalg as sla
+
+    try:
+        largest = float(sla.eigsh(A, k=1, which="LA", tol=1e-3, return_eigenvectors=False)[0])
+    except sla.ArpackNoConvergence:  # the row-sum bound on it instead: a larger, more lenient shift
+        largest = float(abs(A).sum(axis=1).max())
+    count = _eigenvalues_below(A, -SEMIDEFINITE_TOL * largest)
+    if count is None:
+        logging.getLogger(__name__).warning("%s: [matrices] %s: its definiteness was not checked (no symmetric "
+                                            "factorisation)", t.path, key)
+    elif count:
+        t.fail(key, t.data[key], f"is not positive semi-definite: {count} eigenvalue{'s' * (count > 1)} "
+                                 f"below {-SEMIDEFINITE_TOL:g} times the largest ({largest:.6g})")
+
+
+def _eigenvalues_below(A, bound: float) -> int | None:
+    """How many eigenvalues of the sparse symmetric A are below ``bound``: the negative pivots of
+    A - bound I = L D L^T (Sylvester's law of inertia).  SuperLU gives that factorisation when it
+    orders rows and columns alike and pivots on the diagonal only (diag_pivot_thresh = 0); where it
+    had to leave the diagonal (a zero pivot), the bound is moved by half its size and tried again;
+    None if no try gave that factorisation."""
+    import scipy.sparse as sp
+    import scipy.sparse.linalg as sla
+
+    n = A.shape[0]
+    for shift in (bound, 1.5 * bound, 2.0 * bound):
+        lu = sla.splu(sp.csc_matrix(A - shift * sp.identity(n)), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+                      options={"SymmetricMode": True})
+        if np.array_equal(lu.perm_r, lu.perm_c):
+            return int(np.count_nonzero(lu.U.diagonal() < 0))
+    return None
 
 
 def _matrices(top: _Table, path):
@@ -491,7 +527,8 @@ def _matrices(top: _Table, path):
             t.fail(key, t.data[key], "is not symmetric (to 1e-10 of its largest entry)")
     if np.any(mats["M"].diagonal() <= 0):
         t.fail("M", t.data["M"], "has a diagonal entry <= 0: not a mass matrix")
-    _check_semidefinite(t, "K", mats["K"])
+    _check_semidefinite(t, "K", mats["K"], "stiffness")
+    _check_semidefinite(t, "M", mats["M"], "mass")
     names = tuple(str(x) for x in t.raw("dof_names", [str(i) for i in range(n)]))
     if len(names) != n or len(set(names)) != n or GROUND in names:
         t.fail("dof_names", list(names), f"must be {n} different names (not 'ground')")

@@ -2,13 +2,12 @@
 state of every pair along the branch (matplotlib).  No display and no xvfb are needed: VTK from
 PyPI renders off-screen.
 
-Everything is read back from ``branch.npz`` (written by ``jointfem frf``): the contact state of
-every pair at every time sample of every point, the per-pair energy, tangential amplitude and
-peak normal force, and the pairs' reference positions.  Nothing is recomputed.
+Everything is read back from ``branch.npz`` (written by ``jointfem frf``, ``nma`` or ``force``): the
+contact state of every pair at every time sample of every point, the per-pair energy, tangential
+amplitude and peak normal force, and the pairs' reference positions.  Nothing is recomputed.
 """
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -43,16 +42,16 @@ def load(folder) -> dict:
     path = folder / "branch.npz"
     if not path.is_file():
         raise OutputError(f"{folder}: no branch.npz here (is it a folder written by `jointfem frf`?)")
-    summary = folder / "summary.json"
-    if summary.is_file():
-        try:
-            analysis = json.loads(summary.read_text()).get("analysis")
-        except (OSError, ValueError, AttributeError):
-            analysis = None
-        if analysis == "force":  # its branch is in the force factor and holds no output layout
-            raise OutputError(f"{folder}: a `jointfem force` folder (summary.json analysis = 'force'): its picture "
-                              f"is force.png; plot and export take the folders of `jointfem frf` and `jointfem nma`")
-    return load_branch(path)
+    data = load_branch(path)
+    if "output_names" not in data:  # a force sweep's folder written before it held its output layout
+        raise OutputError(f"{folder}: branch.npz has no output layout (a `jointfem force` folder of an older "
+                          f"jointfem?): run the command again to plot or export it")
+    return data
+
+
+def is_force(data: dict) -> bool:
+    """A `jointfem force` branch: its points are force levels at one omega, not frequencies."""
+    return "force_N" in data
 
 
 def pick_point(data: dict, point: str | None = None, omega: float | None = None, output: str | None = None) -> int:
@@ -60,6 +59,9 @@ def pick_point(data: dict, point: str | None = None, omega: float | None = None,
     an index, or the point nearest to omega (rad/s)."""
     n = data["omega"].size
     if omega is not None:
+        if is_force(data):
+            raise OutputError(f"--omega = {omega:g}: a force sweep's points are all at omega = "
+                              f"{float(data['omega'][0]):.6g} rad/s: choose one with --point")
         return int(np.argmin(np.abs(data["omega"] - omega)))
     if point in (None, "peak"):
         amp = _output_amplitude(data, output)
@@ -124,8 +126,11 @@ def plot_state_map(data: dict, path: Path, *, title: str = "") -> Picture:
     n_pts, P = share.shape[:2]
     fig, ax = plt.subplots(figsize=(8, 1.8 + 0.2 * min(P, 30)))
     backbone = "xi" in data and "amplitude" in data  # a nonlinear mode's folder (jointfem nma)
-    # along a backbone the columns stand at log10 of its amplitude, as backbone.png's axis; else Hz, as frf.png
-    f = np.log10(data["amplitude"]) if backbone else data["omega"] / (2 * np.pi)
+    force = is_force(data)
+    # along a backbone the columns stand at log10 of its amplitude, as backbone.png's axis; along a
+    # force sweep at log10 of the force, as force.png's; else at Hz, as frf.png's
+    f = (np.log10(data["amplitude"]) if backbone else np.log10(data["force_N"]) if force
+         else data["omega"] / (2 * np.pi))
     # each point's column reaches halfway to its neighbours along the branch (where the branch turns
     # back, later points are drawn over earlier ones), and is at least 0.2 % of the range wide
     mid = 0.5 * (f[1:] + f[:-1])
@@ -146,7 +151,9 @@ def plot_state_map(data: dict, path: Path, *, title: str = "") -> Picture:
         bottom = bottom + h
     ax.set_xlim(x0.min(), x1.max())
     ax.set_ylim(-0.6, P - 0.4)
-    ax.set_xlabel(f"log10 of the first-harmonic amplitude at {data['output']} [m]" if backbone else "frequency [Hz]")
+    ax.set_xlabel(f"log10 of the first-harmonic amplitude at {data['output']} [m]" if backbone
+                  else f"log10 of the force amplitude [N] at {float(data['omega'][0]):.6g} rad/s" if force
+                  else "frequency [Hz]")
     ax.set_ylabel("contact pair")
     shown = tuple(k for k in range(3) if (share[..., k] > 0).any())
     labels = [STATE_NAMES[k] for k in range(3)]
@@ -278,7 +285,8 @@ def plot_interface(data: dict, i: int, path: Path, *, title: str = "", window=(1
         view()
     pl.subplot(1, 3)
     omega = float(data["omega"][i])
-    pl.add_text(f"{title}\npoint {i} of {data['omega'].size}\nomega = {omega:.6g} rad/s\n"
+    force = f"force = {float(data['force_N'][i]):.6g} N\n" if is_force(data) else ""
+    pl.add_text(f"{title}\npoint {i} of {data['omega'].size}\n{force}omega = {omega:.6g} rad/s\n"
                 f"f = {omega / 2 / np.pi:.6g} Hz\n{P} pairs\nstick / slip / separated:\n"
                 + " / ".join(f"{x:.2f}" for x in frac.mean(axis=0)), font_size=10, color="black",
                 position="upper_left")

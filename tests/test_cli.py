@@ -568,3 +568,54 @@ def test_a_scene_names_its_reduction_and_the_flags_override_it(tmp_path, capsys)
     args = cli.build_parser().parse_args(["frf", str(path), "--modes", "5", "--tvd-kind", "eigen", "--method", "cb"])
     method, opts = cli._reduction(args, scene, args.method)
     assert method == "cb" and (opts.modes, opts.tvd, opts.tvd_kind) == (5, 1, "eigen")
+
+
+def test_modes_0_is_refused_before_the_model_is_built(tmp_path, capsys, monkeypatch):
+    """Issue 50, item 11: ``--modes 0`` with the penalty or tvd ROM was refused in build_rom, after
+    the model was built (a continuum's meshing and assembly) and, in compare, after the full-order
+    reference was solved.  Every command now refuses it with one line, exit 2, before
+    create_structure is called (here made to fail the test if it is)."""
+    from jointfem import app, cli, scene as scene_module
+
+    def not_before(scene):
+        raise AssertionError("the model was built before the options were checked")
+
+    monkeypatch.setattr(app, "create_structure", not_before)  # frf, nma, compare
+    monkeypatch.setattr(scene_module, "create_structure", not_before)  # force (cli imports it at call time)
+    scene = str(ROOT / "demos" / "sdof_jenkins.toml")
+    for command, extra in (("frf", []), ("force", ["--omega", "1.0"]), ("nma", [])):
+        for method in ("penalty", "tvd"):
+            out = tmp_path / f"{command}_{method}"
+            argv = [command, scene, "--out", str(out), "--method", method, "--modes", "0", "--quiet", *extra]
+            assert cli.main(argv) == 2, argv
+            err = capsys.readouterr().err
+            assert err.count("\n") == 1 and f"{method}: modes = 0" in err and "--modes >= 1" in err, err
+            assert not out.exists()
+    out = tmp_path / "compare"
+    assert cli.main(["compare", scene, "--methods", "full,penalty:0", "--out", str(out), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "penalty: modes = 0" in err and not out.exists(), err
+
+
+def test_version_is_the_installed_distributions(capsys, monkeypatch):
+    """Issue 50, item 12: ``jointfem --version`` (and summary.json's software) give the version of the
+    installed distribution (importlib.metadata, from pyproject.toml), not a second copy of it in the
+    package that can drift: here the metadata is made to say 9.8.7, and then that nothing is installed."""
+    from importlib import metadata
+
+    from jointfem import app, cli
+
+    real = metadata.version
+    monkeypatch.setattr(metadata, "version", lambda name: "9.8.7" if name == "jointfem" else real(name))
+    with pytest.raises(SystemExit) as exc:
+        cli.main(["--version"])
+    assert exc.value.code == 0 and capsys.readouterr().out == "jointfem 9.8.7\n"
+    assert app.software()["jointfem"] == "9.8.7"
+
+    def missing(name):
+        raise metadata.PackageNotFoundError(name)
+
+    monkeypatch.setattr(metadata, "version", missing)
+    with pytest.raises(SystemExit):
+        cli.main(["--version"])
+    assert capsys.readouterr().out == "jointfem unknown\n"

@@ -52,11 +52,23 @@ def test_force_command_writes_its_files(tmp_path):
     s = json.loads((out / "summary.json").read_text())
     assert s["omega_rad_s"] == 1.2 and s["status"] == "complete" and s["num_points"] == data.shape[0]
     assert (out / "force.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    # plot and export say what the folder is, in one line (issue 50, item 9: a KeyError traceback)
-    for command in ("plot", "export"):
-        r = subprocess.run([sys.executable, "-m", "jointfem", command, str(out)], capture_output=True, text=True)
-        assert r.returncode == 2 and "a `jointfem force` folder" in r.stderr and "Traceback" not in r.stderr, r.stderr
-        assert len(r.stderr.strip().splitlines()) == 1
+    # plot draws the force sweep (issue 50, item 9: plot and export stopped on a KeyError traceback):
+    # the state map along the force, which the branch holds per point as force.csv does
+    from jointfem import cli
+    from jointfem.viz import fractions, load
+
+    assert cli.main(["plot", str(out), "--quiet"]) == 0
+    assert (out / "states_branch.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    b = load(out)
+    np.testing.assert_allclose(b["force_N"], data[:, 1], rtol=1e-12)  # force.csv: 13 significant digits
+    assert np.all(b["omega"] == 1.2) and list(b["output_names"]) == ["m.x"]
+    assert fractions(b, 0)[0, 0] == 1.0 and fractions(b, -1)[0, 1] > 0  # stuck at 0.01 N, slipping at 1 N
+    # a force sweep's points are all at one omega: --omega is refused in one line; export has nothing
+    # to write for a lumped model (no positions, no mesh) and says so as for a sweep's folder
+    for argv, words in ((["plot", str(out), "--omega", "1.2"], "a force sweep's points are all at omega = 1.2"),
+                        (["export", str(out)], "nothing to export at point")):
+        r = subprocess.run([sys.executable, "-m", "jointfem", *argv], capture_output=True, text=True)
+        assert r.returncode == 2 and words in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.stderr
     assert not (out / "export").exists()
 
 
@@ -103,3 +115,39 @@ def test_a_force_sweep_that_stops_keeps_its_points_and_resumes(tmp_path):
                    capture_output=True, text=True)
     r = run(str(full), "--resume", str(f))
     assert r.returncode == 2 and "not a force run" in r.stderr and r.stderr.count("\n") == 1, r.stderr
+
+
+def test_a_continuum_force_folder_exports_its_shape_and_pairs(tmp_path):
+    """Issue 50, item 9: ``jointfem export`` of a `jointfem force` folder of the 2D lap joint (penalty
+    ROM, H = 1) writes the mesh with the displacement harmonics (shape.npz, now written by force as by
+    frf) and the pairs at the largest amplitude; the pairs' values are branch.npz's at that point
+    (exactly: the same numbers written twice), and the first harmonic is the ROM's coordinates
+    expanded through its basis.  A force folder of an older jointfem (no output layout) is refused in
+    one line."""
+    import meshio
+
+    from jointfem import cli
+    from jointfem.harmonics import Harmonics
+    from jointfem.viz import load
+
+    out = tmp_path / "lap"
+    assert cli.main(["force", str(ROOT / "demos" / "lap2d.toml"), "--omega", "3000", "--scale", "0.5", "1",
+                     "--method", "penalty", "--harmonics", "1", "--samples", "16", "--out", str(out), "--quiet"]) == 0
+    b = load(out)
+    i = int(np.argmax(np.loadtxt(out / "force.csv", delimiter=",", skiprows=1)[:, 2]))
+    assert cli.main(["export", str(out), "--quiet"]) == 0
+    pairs = meshio.read(out / "export" / f"pairs_{i}.vtu")
+    np.testing.assert_array_equal(pairs.point_data["energy_J"], b["pair_energy_J"][i])
+    np.testing.assert_array_equal(pairs.point_data["tangential_amp_m"], b["pair_tangential_amp_m"][i])
+    assert pairs.points.shape[0] == b["pair_coords"].shape[0] == 7
+    field = meshio.read(out / "export" / f"field_{i}.vtu")
+    with np.load(out / "shape.npz") as z:
+        q, h = int(b["num_dofs"]), Harmonics(1, 16)
+        u1 = z["recovery"] @ b["U"][i][h.cos(1, q)]
+        np.testing.assert_allclose(field.point_data["u_1_cos"][z["dof_node"], z["dof_comp"]], u1,
+                                   rtol=0, atol=1e-12 * np.abs(u1).max())
+    with np.load(out / "branch.npz") as z:  # as an older jointfem wrote a force folder
+        old = {k: z[k] for k in ("scale", "U", "states", "H", "N")}
+    np.savez(out / "branch.npz", omega=3000.0, **old)
+    r = subprocess.run([sys.executable, "-m", "jointfem", "plot", str(out)], capture_output=True, text=True)
+    assert r.returncode == 2 and "no output layout" in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.stderr

@@ -100,3 +100,38 @@ def test_bad_matrix_files_are_one_line(tmp_path):
         p.write_text(base.replace(old, new))
         with pytest.raises(SceneError, match=words):
             load_scene(p)
+
+
+def test_stiffness_and_mass_not_semidefinite_are_refused_at_any_size(tmp_path):
+    """Issue 50, item 5: a K with a positive diagonal but a negative eigenvalue was accepted above
+    3000 DOFs (only its diagonal was checked there), and an indefinite M with a positive diagonal
+    at any size.  A free-free chain of 3200 DOFs (springs of 1 to 1e6 N/m: K singular, one zero
+    eigenvalue, which round-off may leave slightly negative) is accepted.  The same chain with
+    1e7 [[1, 2], [2, 1]] added on two distant DOFs a, b keeps a positive diagonal, but x = e_a - e_b
+    gives x^T K x = K_aa + K_bb - 2e7 <= 4e6 - 2e7 < 0: an eigenvalue below -8e6, against a largest
+    of about 3e7, far beyond the 1e-6 of round-off; it is refused with the count of such
+    eigenvalues, as is a mass matrix [[1, 2], [2, 1]] (eigenvalue -1) of the two-DOF scene."""
+    n = 3200
+    k = 10 ** np.random.default_rng(0).uniform(0, 6, n - 1)
+    K = sp.diags([np.r_[k, 0] + np.r_[0, k], -k, -k], [0, 1, -1]).tocsr()
+    a, b = 1000, 2000
+    block = sp.csr_matrix(([1e7, 2e7, 2e7, 1e7], ([a, a, b, b], [a, b, a, b])), shape=(n, n))
+    sp.save_npz(tmp_path / "k.npz", K)
+    sp.save_npz(tmp_path / "kneg.npz", (K + block).tocsr())
+    sp.save_npz(tmp_path / "m.npz", sp.identity(n, format="csr"))
+    chain = MATRICES_SCENE.format(K="k.npz", M="m.npz", D="m.npz", variables="").replace(
+        'dof_names = ["m.x", "m.z"]', f"dof_names = {['m.x', 'm.z'] + [str(i) for i in range(2, n)]}")
+    p = tmp_path / "chain.toml"
+    p.write_text(chain)
+    assert load_scene(p).model.K.shape == (n, n)
+    p.write_text(chain.replace('K = "k.npz"', 'K = "kneg.npz"'))
+    with pytest.raises(SceneError, match=r"chain.toml: matrices.K = 'kneg.npz': is not positive semi-definite: "
+                                         r"1 eigenvalue below -1e-06 times the largest \(3.03\d*e\+07\)$") as exc:
+        load_scene(p)
+    assert "\n" not in str(exc.value)
+    sio.mmwrite(str(tmp_path / "k2.mtx"), sp.csr_matrix(np.array([[2.0, -1.0], [-1.0, 2.0]])))
+    sio.mmwrite(str(tmp_path / "m2.mtx"), sp.csr_matrix(np.array([[1.0, 2.0], [2.0, 1.0]])))
+    p.write_text(MATRICES_SCENE.format(K="k2.mtx", M="m2.mtx", D="k2.mtx", variables=""))
+    with pytest.raises(SceneError, match=r"matrices.M = 'm2.mtx': is not positive semi-definite: its smallest "
+                                         r"eigenvalue is -1"):
+        load_scene(p)

@@ -19,6 +19,7 @@ from ..models.structure import Structure
 from ..results import FrequencyResponse
 from ..rom import METHODS, RomError, RomOptions, build_rom
 from ..rom.cms import TVD_KINDS
+from ..rom.reductors import check_options
 from .frf import compute_frf
 
 
@@ -55,7 +56,10 @@ def parse_method(text: str, defaults: RomOptions) -> MethodSpec:
         raise RomError(f"--methods: {text!r}: expected name[:modes[:tvd[:kind]]] with non-negative integers")
     modes = nums[0] if nums else defaults.modes
     tvd = nums[1] if len(nums) > 1 else defaults.tvd
-    return MethodSpec(name, replace(defaults, modes=modes, tvd=tvd, tvd_kind=kind))
+    spec = MethodSpec(name, replace(defaults, modes=modes, tvd=tvd, tvd_kind=kind))
+    if name != "full":  # before the reference is solved, not after it
+        check_options(name, spec.options)
+    return spec
 
 
 def curve_error(frf: FrequencyResponse, ref: FrequencyResponse, output: str, *, stable_only: bool = False) -> float:

@@ -117,6 +117,9 @@ class ForceResponse:
     harmonics: Harmonics
     outputs: dict  # name -> index or recovery row
     info: dict
+    pair_names: tuple = ()
+    pair_coords: np.ndarray | None = None  # (pairs, 3) m, for the interface pictures
+    pair_areas: np.ndarray | None = None  # (pairs,) m^2, for the per-area quantities
 
     def amplitude(self, name: str) -> np.ndarray:
         """First-harmonic amplitude of an output at every point, m."""
@@ -182,10 +185,13 @@ def compute_force_response(model: Structure | Reduction, omega: float, harmonics
                        # the step the continuation takes from each point (``resume``)
                        "ds_next": np.array([p.ds_next for p in points]),
                        "rom_size": np.array([r.size for r in records]), "unknowns": unknowns,
-                       "pair_energy_J": np.array([r.pair_summary[:, 0] for r in records])}}
+                       "pair_energy_J": np.array([r.pair_summary[:, 0] for r in records]),
+                       "pair_tangential_amp_m": np.array([r.pair_summary[:, 1] for r in records]),
+                       "pair_peak_normal_N": np.array([r.pair_summary[:, 2] for r in records])}}
+    layout = problem.layout
     response = ForceResponse(omega, np.array([p.lam for p in points]), np.array([p.x for p in points]),
                              np.array([r.states for r in records], dtype=np.int8), harmonics,
-                             dict(problem.layout.outputs), info)
+                             dict(layout.outputs), info, layout.pair_names, layout.pair_coords, layout.pair_areas)
     if stopped is not None:
         info.update(status="incomplete", stop_reason=str(stopped))
         raise ForceIncomplete(str(stopped), response=response, points=points, interrupted=stopped.interrupted)
