@@ -5,18 +5,7 @@ The layout (docs/theory.md, "Layout"): scene -> model -> reduced model -> proble
 results -> plots.  ``jointfem.app`` is the library layer the command line and the demos call.
 """
 from .scene import Scene, SceneError, create_structure, load_scene  # noqa: F401
-
-
-def installed_version() -> str:
-    """The version of the installed distribution (pyproject.toml, the one place it is written), or
-    "unknown" when run from a source tree that was not installed."""
-    from importlib import metadata
-
-    try:
-        return metadata.version("jointfem")
-    except metadata.PackageNotFoundError:
-        return "unknown"
-
+from .version import installed_version
 
 __version__ = installed_version()
 

@@ -519,7 +519,7 @@ def software() -> dict:
 
     import scipy
 
-    from . import installed_version
+    from .version import installed_version
 
     out = {"jointfem": installed_version(), "python": platform.python_version(), "numpy": np.__version__,
            "scipy": scipy.__version__}

@@ -312,7 +312,7 @@ def _stability_arg(p) -> None:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from . import installed_version
+    from .version import installed_version
 
     p = argparse.ArgumentParser(prog="jointfem", description="Nonlinear vibration of jointed structures (HBM).")
     p.add_argument("--version", action="version", version=f"jointfem {installed_version()}")

@@ -327,6 +327,24 @@ def finite_frequencies(K, M, num: int, *, what: str = "model", at_most: bool = F
     return np.sqrt(positive[:num]), negative
 
 
+def eigenvalues_below(A, bound: float) -> int | None:
+    """How many eigenvalues of the sparse symmetric A are below ``bound``: the negative pivots of
+    A - bound I = L D L^T (Sylvester's law of inertia).  SuperLU gives that factorisation when it
+    orders rows and columns alike and pivots on the diagonal only (diag_pivot_thresh = 0); where it
+    had to leave the diagonal (a zero pivot), the bound is moved by half its size and tried again;
+    None if no try gave that factorisation."""
+    import scipy.sparse as sp
+    import scipy.sparse.linalg as sla
+
+    n = A.shape[0]
+    for shift in (bound, 1.5 * bound, 2.0 * bound):
+        lu = sla.splu(sp.csc_matrix(A - shift * sp.identity(n)), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+                      options={"SymmetricMode": True})
+        if np.array_equal(lu.perm_r, lu.perm_c):
+            return int(np.count_nonzero(lu.U.diagonal() < 0))
+    return None
+
+
 class Factorized:
     """A sparse LU of a square matrix, with a clear error when it is singular.
 

@@ -454,7 +454,7 @@ def _check_semidefinite(t: _Table, key: str, A, what: str) -> None:
     free-floating model must not be refused for that.  A negative diagonal entry disproves it at
     once (x = e_i gives x^T A x < 0).  Up to SEMIDEFINITE_DENSE DOFs the smallest eigenvalue is
     computed; above, the eigenvalues below the bound are counted by the inertia of A + tol I
-    (_eigenvalues_below): a sparse factorisation, as the modes' shift-invert makes anyway."""
+    (linalg.eigenvalues_below): a sparse factorisation, as the modes' shift-invert makes anyway."""
     d = A.diagonal()
     if np.any(d < 0):
         i = int(np.argmin(d))
@@ -468,11 +468,13 @@ def _check_semidefinite(t: _Table, key: str, A, what: str) -> None:
         return
     import scipy.sparse.linalg as sla
 
+    from .linalg import eigenvalues_below
+
     try:
         largest = float(sla.eigsh(A, k=1, which="LA", tol=1e-3, return_eigenvectors=False)[0])
     except sla.ArpackNoConvergence:  # the row-sum bound on it instead: a larger, more lenient shift
         largest = float(abs(A).sum(axis=1).max())
-    count = _eigenvalues_below(A, -SEMIDEFINITE_TOL * largest)
+    count = eigenvalues_below(A, -SEMIDEFINITE_TOL * largest)
     if count is None:
         logging.getLogger(__name__).warning("%s: [matrices] %s: its definiteness was not checked (no symmetric "
                                             "factorisation)", t.path, key)
@@ -480,23 +482,6 @@ def _check_semidefinite(t: _Table, key: str, A, what: str) -> None:
         t.fail(key, t.data[key], f"is not positive semi-definite: {count} eigenvalue{'s' * (count > 1)} "
                                  f"below {-SEMIDEFINITE_TOL:g} times the largest ({largest:.6g})")
 
-
-def _eigenvalues_below(A, bound: float) -> int | None:
-    """How many eigenvalues of the sparse symmetric A are below ``bound``: the negative pivots of
-    A - bound I = L D L^T (Sylvester's law of inertia).  SuperLU gives that factorisation when it
-    orders rows and columns alike and pivots on the diagonal only (diag_pivot_thresh = 0); where it
-    had to leave the diagonal (a zero pivot), the bound is moved by half its size and tried again;
-    None if no try gave that factorisation."""
-    import scipy.sparse as sp
-    import scipy.sparse.linalg as sla
-
-    n = A.shape[0]
-    for shift in (bound, 1.5 * bound, 2.0 * bound):
-        lu = sla.splu(sp.csc_matrix(A - shift * sp.identity(n)), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
-                      options={"SymmetricMode": True})
-        if np.array_equal(lu.perm_r, lu.perm_c):
-            return int(np.count_nonzero(lu.U.diagonal() < 0))
-    return None
 
 
 def _matrices(top: _Table, path):
