@@ -170,7 +170,7 @@ def bench_roms(repeats: int, img: Path) -> dict:
     specs = [parse_method(m, RomOptions()) for m in BEAM_METHODS]
     # stability off for every method: the table compares the sweeps alone (the exact condensation
     # has its stability from the full model, which would time another method's work)
-    results = compare(structure, specs, sweep_options(scene, stability="off"), output="b1.mid.uy", repeats=repeats,
+    results = compare(structure, specs, sweep_options(scene, stability="off", peak_share=0.0), output="b1.mid.uy", repeats=repeats,
                       progress=lambda m: print(f"bench: beam {m} ...", flush=True))
     plot_compare(results, "b1.mid.uy", img / "compare_frf_beam.png", img / "pareto_beam.png",
                  title="jointed beam, 3.0 N: error against online time")
@@ -187,7 +187,7 @@ def bench_roms(repeats: int, img: Path) -> dict:
         model = build_rom(structure, sp_.method, sp_.options)
         prof = cProfile.Profile()
         prof.enable()
-        frf = compute_frf(model, sweep_options(scene, stability="off"))
+        frf = compute_frf(model, sweep_options(scene, stability="off", peak_share=0.0))
         prof.disable()
         st = pstats.Stats(prof).stats
         ev = [v for (f, _, n), v in st.items() if n == "_evaluate" and f.endswith("residual.py")][0]
@@ -230,7 +230,7 @@ def bench_lap3d(repeats: int, img: Path) -> dict:
     structure = create_structure(scene)
     t_model = time.perf_counter() - t0
     specs = [parse_method(m, RomOptions()) for m in LAP3D_METHODS]
-    results = compare(structure, specs, sweep_options(scene, stability="off"), output="a_mid.uy", reference="exact",
+    results = compare(structure, specs, sweep_options(scene, stability="off", peak_share=0.0), output="a_mid.uy", reference="exact",
                       repeats=repeats, reference_ds_max=0.03,
                       progress=lambda m: print(f"bench: lap3d {m} ...", flush=True))
     plot_compare(results, "a_mid.uy", img / "compare_frf_lap3d.png", img / "pareto_lap3d.png",
@@ -262,7 +262,7 @@ def bench_convergence() -> dict:
     def peak(H, N):
         t = time.perf_counter()
         h = Harmonics(H, N)
-        frf = compute_frf(s, SweepOptions(1.1, 1.5, h, ContinuationOptions(ds_max=0.005)))
+        frf = compute_frf(s, SweepOptions(1.1, 1.5, h, ContinuationOptions(ds_max=0.005), peak_share=0.0))
         w, a = frf.peak("m.x")
         # and at fixed omega = 1.29 (near the peak), by Newton from the nearest point
         r = HBMResidual(s, h)

@@ -88,7 +88,7 @@ def run(case_variant, max_points=None):
     with tempfile.TemporaryDirectory() as tmp:
         sc = override_harmonics(override(load_scene(scene_at_force(ROOT / scene, force, Path(tmp))),
                                          list(sets[0]) if sets else []), H, N)
-        opts = sweep_options(sc, stability="off")
+        opts = sweep_options(sc, stability="off", peak_share=0.0)
         cont = replace(opts.continuation, time_limit=budget, **(OLD if variant == "before" else {}),
                        **({"max_points": max_points} if max_points else {}))
         opts = replace(opts, continuation=cont)

@@ -41,7 +41,7 @@ def run(scene_name: str) -> dict:
 
     scene = load_scene(ROOT / "demos" / scene_name)
     st = create_structure(scene)
-    sweep = sweep_options(scene, stability="off")
+    sweep = sweep_options(scene, stability="off", peak_share=0.0)
     out = next(iter(st.outputs))
     t0 = time.perf_counter()
     basis = modal_basis(st, required=True)

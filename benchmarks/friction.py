@@ -252,7 +252,7 @@ def run_case(case: Case, repeats: int, img: Path) -> list[str]:
     out_dof = case.output
     scene = load_scene(ROOT / "demos" / case.scene)
     structure = create_structure(scene)
-    sweep = sweep_options(scene, stability="off")
+    sweep = sweep_options(scene, stability="off", peak_share=0.0)
     specs = [parse_method(m, RomOptions()) for m in case.methods]
     repeats = case.repeats or repeats
     results = compare(structure, specs, sweep, output=out_dof, reference="exact", repeats=repeats,

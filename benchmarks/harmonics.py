@@ -96,7 +96,7 @@ def run(case):
     from jointfem.rom.reductors import build_rom
     from jointfem.scene import create_structure
     sc = scene_at(H, N, law)
-    opts = sweep_options(sc, stability="off")
+    opts = sweep_options(sc, stability="off", peak_share=0.0)
     opts = replace(opts, continuation=replace(opts.continuation, time_limit=BUDGET))
     st = create_structure(sc)
     model = st if method == "full" else build_rom(st, method)

@@ -92,7 +92,7 @@ def sdof_part(lines):
         bb, t_bb = timed(compute_backbone, s(1.0, 0.02), NmaOptions(amplitude_start=0.1, amplitude_end=30.0,
                                                                       harmonics=h, excitation=exc))
         for F in (0.1, 0.2, 0.3):
-            frf = compute_frf(s(F, 0.02), SweepOptions(0.5, 2.5, harmonics=h))
+            frf = compute_frf(s(F, 0.02), SweepOptions(0.5, 2.5, harmonics=h, peak_share=0.0))
             pk = frf.info["peaks"]["m.x"]
             wb = np.interp(np.log(pk.amplitude), np.log(bb.amplitude), bb.omega)
             syn = synthesize_frf(bb, F)
@@ -120,7 +120,7 @@ def scene_backbones(lines, scene_path: Path, mode: int, amps, at, methods, title
     s = create_structure(scene)
     h = Harmonics(scene.solver.harmonics, scene.solver.samples)
     out = next(iter(s.outputs))
-    cont = replace(app.sweep_options(scene, stability="off").continuation, max_points=max_points)
+    cont = replace(app.sweep_options(scene, stability="off", peak_share=0.0).continuation, max_points=max_points)
     opts = NmaOptions(mode=mode, amplitude_start=amps[0], amplitude_end=amps[1], output=out, harmonics=h,
                       continuation=cont, at=tuple(at), excitation=excitation)
     res = {}
@@ -160,7 +160,7 @@ def scene_backbones(lines, scene_path: Path, mode: int, amps, at, methods, title
         rows = []
         for F in levels:
             sF = create_structure(app.override(scene, [f"force.amplitude={F}"] + list(sets)))
-            frf, t = timed(compute_frf, sF, app.sweep_options(app.override(scene, list(sets)), stability="off"))
+            frf, t = timed(compute_frf, sF, app.sweep_options(app.override(scene, list(sets)), stability="off", peak_share=0.0))
             pk = frf.info["peaks"][out]
             wb = np.interp(np.log(pk.amplitude), np.log(ref.amplitude), ref.omega)
             syn = synthesize_frf(ref, F / app.scene_force_amplitudes(scene)[0])

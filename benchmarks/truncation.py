@@ -62,7 +62,7 @@ def beam(H: int, N: int):
     from jointfem.rom.reductors import build_rom
     from jointfem.scene import create_structure
     sc = scene_at(H, N, "events")
-    opts = sweep_options(sc, stability="off")
+    opts = sweep_options(sc, stability="off", peak_share=0.0)
     return build_rom(create_structure(sc), "exact"), (opts.omega_start, opts.omega_end)
 
 
@@ -73,7 +73,7 @@ def lap3d(H: int, N: int):
     from jointfem.rom.reductors import build_rom
     from jointfem.scene import create_structure, load_scene
     sc = override(load_scene(ROOT / "demos" / "lap3d_friction.toml"), [f"solver.harmonics={H}", f"solver.samples={N}"])
-    opts = sweep_options(sc, stability="off")
+    opts = sweep_options(sc, stability="off", peak_share=0.0)
     return build_rom(create_structure(sc), "exact"), (opts.omega_start, opts.omega_end)
 
 
@@ -96,7 +96,7 @@ def peak_point(model, window, H: int, N: int, name: str):
     from jointfem.harmonics import Harmonics
 
     h = Harmonics(H, N)
-    frf = compute_frf(model, SweepOptions(window[0], window[1], h, stability=False))
+    frf = compute_frf(model, SweepOptions(window[0], window[1], h, stability=False, peak_share=0.0))
     p = frf.info["peaks"][name]
     if not p.located:
         raise RuntimeError(f"{name}: no located peak at H = {H} ({p})")

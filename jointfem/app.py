@@ -97,14 +97,15 @@ def override(scene: Scene, assignments: list[str]) -> Scene:
 STABILITY = {"auto": None, "on": True, "off": False}  # --stability
 
 
-def sweep_options(scene: Scene, *, stability: str | None = None) -> SweepOptions:
-    """The scene's [solver] table as the FRF's options; ``stability``: auto, on or off (None: the
-    scene's [solver] stability)."""
+def sweep_options(scene: Scene, *, stability: str | None = None, peak_share: float | None = None) -> SweepOptions:
+    """The scene's [solver] table as the FRF's options; ``stability``: auto, on or off, and
+    ``peak_share`` (None: the scene's [solver] stability and peak_share; benchmarks that measure
+    errors below a peak's truncation error locate it with peak_share = 0)."""
     stability = scene.solver.stability if stability is None else stability
     s = scene.solver
     return SweepOptions(
         stability=STABILITY[stability], stability_memory=s.stability_memory, omega_limits=s.omega_limits,
-        peak_error=s.peak_error, peak_share=s.peak_share,
+        peak_error=s.peak_error, peak_share=s.peak_share if peak_share is None else peak_share,
         harmonic_adaptation=(HarmonicAdaptation(target=s.harmonic_target, H_max=s.harmonics_max, tol=s.amplitude_tol)
                              if s.harmonics_auto else None),
         omega_start=s.omega_start, omega_end=s.omega_end, harmonics=Harmonics(s.harmonics, s.samples),
