@@ -451,7 +451,11 @@ def main(argv=None) -> int:
     _SIGNAL[0] = signal.SIGINT
     replaced = _signal_policy()
     try:
-        return args.func(args)
+        # warnings go through tqdm.write: above the progress bar, each on its own line, not onto it
+        from tqdm.contrib.logging import logging_redirect_tqdm
+
+        with logging_redirect_tqdm():
+            return args.func(args)
     except KeyboardInterrupt:  # outside a sweep (a sweep keeps its points and returns 130 itself)
         print(f"jointfem: interrupted ({signal.Signals(_SIGNAL[0]).name})", file=sys.stderr)
         return _interrupted_code()

@@ -619,3 +619,16 @@ def test_version_is_the_installed_distributions(capsys, monkeypatch):
     with pytest.raises(SystemExit):
         cli.main(["--version"])
     assert capsys.readouterr().out == "jointfem unknown\n"
+
+
+def test_warnings_are_written_above_the_progress_bar_not_onto_it(tmp_path):
+    """Issue 50, item 7: a warning during a sweep was written onto the progress bar's line
+    ("... newton=1WARNING jointfem.analysis.frf: ..."); through tqdm.write it starts a line of its
+    own (the bar's line cleared first).  The SDOF oscillator at H = 1 warns of its truncation."""
+    r = _run("frf", ROOT / "demos" / "sdof_jenkins.toml", "--harmonics", "1", "--samples", "64", "--out", tmp_path / "o")
+    assert r.returncode == 0, r.stderr
+    at = [m.start() for m in re.finditer("WARNING jointfem", r.stderr)]
+    assert at, r.stderr
+    for i in at:
+        before = r.stderr[:i].rstrip(" ")
+        assert before == "" or before[-1] in "\r\n", repr(r.stderr[max(0, i - 60):i + 20])
