@@ -182,8 +182,7 @@ class _Segments:
         za, zb = np.append(xa, la), np.append(xb, lb)
         if da is not None and db is not None:  # Hermite's cubic
             ma, mb = h * np.append(*da), h * np.append(*db)
-            z = ((2 * u ** 3 - 3 * u ** 2 + 1) * za + (u ** 3 - 2 * u ** 2 + u) * ma
-                 + (-2 * u ** 3 + 3 * u ** 2) * zb + (u ** 3 - u ** 2) * mb)
+            z = _hermite(u, za, ma, zb, mb)
         elif da is not None:  # the quadratic with z(a), z'(a) and z(b)
             ma = h * np.append(*da)
             z = za + u * ma + u ** 2 * (zb - za - ma)
@@ -260,7 +259,7 @@ def _locate(segments: _Segments, records, dof, *, grid: int, omega_rtol: float, 
         A[s] = a = output_amplitude(xs, dof, h)
         if KINK_BOUND == "pieces":
             try:
-                D[s] = abs(output_amplitude_derivative(xs, segments.derivative(k, float(s - k)), dof, h))
+                D[s] = abs(rise(s, k))
             except (np.linalg.LinAlgError, RuntimeError):  # singular bordered system (a bifurcation)
                 D[s] = np.nan  # bounded as steeply as anywhere (below)
         if a > best[0]:
@@ -302,8 +301,7 @@ def _locate(segments: _Segments, records, dof, *, grid: int, omega_rtol: float, 
             qa, qb, qc = 6 * a0 + 3 * m0 - 6 * a1 + 3 * m1, -6 * a0 - 4 * m0 + 6 * a1 - 2 * m1, m0
             taus = [0.0, 1.0] + [float(r.real) for r in np.roots([qa, qb, qc])
                                  if abs(r.imag) < 1e-12 and 0.0 < r.real < 1.0]
-            p = [((2 * t ** 3 - 3 * t ** 2 + 1) * a0 + (t ** 3 - 2 * t ** 2 + t) * m0
-                  + (-2 * t ** 3 + 3 * t ** 2) * a1 + (t ** 3 - t ** 2) * m1) for t in taus]
+            p = [_hermite(t, a0, m0, a1, m1) for t in taus]
             j = int(np.argmax(p))
             reach, tau = p[j] + 4 / 27 * abs(m0 + m1 - 2 * (a1 - a0)), (taus[j] if 0.0 < taus[j] < 1.0 else 0.5)
             if m0 > 0.0 > m1:
@@ -396,6 +394,12 @@ def _locate(segments: _Segments, records, dof, *, grid: int, omega_rtol: float, 
         log.warning("peak not located between omega = %.9g and %.9g: %s", lam[lo], lam[hi], exc)
         return Peak(float(lam[i]), float(amp[i]), located=False, reason=str(exc))
     return Peak(best[1], best[0], located=True, residual=best[2], x=np.array(best[3]), tolerance=gain - 1.0)
+
+
+def _hermite(u: float, a0, m0, a1, m1):
+    """Hermite's cubic at u in [0, 1] with values a0, a1 and derivatives m0, m1 (in u) at its ends."""
+    return ((2 * u ** 3 - 3 * u ** 2 + 1) * a0 + (u ** 3 - 2 * u ** 2 + u) * m0
+            + (-2 * u ** 3 + 3 * u ** 2) * a1 + (u ** 3 - u ** 2) * m1)
 
 
 def _with_neighbours(v: np.ndarray) -> np.ndarray:
