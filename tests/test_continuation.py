@@ -281,9 +281,12 @@ def test_a_resumed_branch_is_not_walked_back_along_its_points_before_the_stop():
     opts = ContinuationOptions(ds0=0.02, ds_max=0.02)
     resume = ((np.array([1.0]), 1.0), 0.02)
     with pytest.raises(ContinuationError, match=r"the step goes back along the branch traced at lam = 0.52 "
-                                                r"\(points 24-25 of this branch\)"):
+                                                r"\(points 24-25 of this branch\)") as stopped:
         continue_branch(line, np.array([0.5]), 0.5, 1.0, x_scale=1.0, lam_scale=1.0, r_scale=1.0, options=opts,
                         resume=resume, traced=before)
+    # the count is the branch's (25 before the stop and the point it resumed from), as the command
+    # line's "N converged points" is: it had said 1
+    assert "after 26 points" in str(stopped.value)
     pts = continue_branch(line, np.array([0.5]), 0.5, 1.0, x_scale=1.0, lam_scale=1.0, r_scale=1.0, options=opts,
                           resume=resume)
     assert pts[-1].lam >= 1.0
