@@ -30,7 +30,7 @@ from .models.structure import Structure
 from .results import FrequencyResponse, OutputError, atomic_write, load_branch
 from .rom import RomOptions, build_rom
 from .rom.common import Reduction
-from .scene import Scene, SceneError, check_solvable, create_structure, parse_scene
+from .scene import MISSING, Scene, SceneError, check_solvable, create_structure, parse_scene
 
 log = logging.getLogger("jointfem")
 
@@ -64,7 +64,7 @@ def override(scene: Scene, assignments: list[str]) -> Scene:
         key, sep, text = item.partition("=")
         key = key.strip()
         if not sep or not key:
-            raise SceneError("--set", item, None, "must be key=value, e.g. force.amplitude=3.0")
+            raise SceneError("--set", item, MISSING, "must be key=value, e.g. force.amplitude=3.0")
         try:
             value = tomllib.loads(f"v = {text.strip()}")["v"]
         except tomllib.TOMLDecodeError:
@@ -815,7 +815,7 @@ def nma_options(scene: Scene, *, mode: int | None = None):
     from .analysis.nma import NmaOptions
 
     if scene.nma is None:
-        raise SceneError(scene.path, "nma", None, "the scene has no [nma] table: give amplitude_range = [start, end] "
+        raise SceneError(scene.path, "[nma]", MISSING, "the scene has no [nma] table: give amplitude_range = [start, end] "
                          "(m, at the output) and optionally mode and output (docs/scenes.md)")
     s, n = scene.solver, scene.nma
     cont = sweep_options(scene, stability="off").continuation
@@ -830,7 +830,7 @@ def check_nma(scene: Scene, structure: Structure, options) -> None:
         raise SceneError(scene.path, "nma.output", options.output,
                          f"no such output (known: {', '.join(structure.outputs)})")
     if not structure.outputs:
-        raise SceneError(scene.path, "output", None, "nonlinear modes need an output at which to measure the amplitude")
+        raise SceneError(scene.path, "[output]", MISSING, "nonlinear modes need an output at which to measure the amplitude")
     if options.mode > structure.num_dofs:
         raise SceneError(scene.path, "nma.mode", options.mode, f"the model has only {structure.num_dofs} DOFs")
 

@@ -29,12 +29,15 @@ KINDS = ("lumped", "beam2d", "continuum2d", "continuum3d", "matrices")
 AFT_KINDS = ("sampled", "events")
 
 
+MISSING = type("Missing", (), {"__repr__": lambda self: "MISSING"})()  # the value of a key the input lacks
+
+
 class SceneError(ValueError):
-    """Bad scene input: names the file, the key and the value."""
+    """Bad scene input: names the file, the key and the value (MISSING: the key is not there)."""
 
     def __init__(self, path, key: str, value: Any, message: str):
         self.path, self.key, self.value = str(path), key, value
-        super().__init__(f"{path}: {key} = {value!r}: {message}")
+        super().__init__(f"{path}: {key}: {message}" if value is MISSING else f"{path}: {key} = {value!r}: {message}")
 
 
 @dataclass(frozen=True)
@@ -149,7 +152,7 @@ class _Table:
         self.used.add(k)
         if k not in self.data:
             if default is _REQUIRED:
-                raise SceneError(self.path, self.key(k), None, "required key is missing")
+                raise SceneError(self.path, self.key(k), MISSING, "required key is missing")
             return default
         return self.data[k]
 

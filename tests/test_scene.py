@@ -22,7 +22,7 @@ def _write(tmp_path, text, name="bad.toml"):
 # (scene text, key in the message, value in the message)
 BAD = {
     "unknown key": (SDOF.replace("harmonics = 7", "harmonics = 7\nharmonix = 3"), "solver.harmonix", "3"),
-    "missing key": (SDOF.replace("m = 1.0\n", ""), "mass[0].m", "None"),
+    "missing key": (SDOF.replace("m = 1.0\n", ""), "mass[0].m", "required key is missing"),
     "mass <= 0": (SDOF.replace("m = 1.0", "m = 0.0"), "mass[0].m", "0.0"),
     "stiffness <= 0": (SDOF.replace("k = 1.0", "k = -2.0"), "spring[0].k", "-2.0"),
     "kt <= 0": (SDOF.replace("kt = 1.0", "kt = 0"), "jenkins[0].kt", "0"),
@@ -199,9 +199,24 @@ def test_set_overrides_any_key_and_validates_again():
     for bad, words in (("force.amplitud=0.5", "force[0].amplitud = 0.5: unknown key"),
                        ("jenkins[3].mu=0.5", "jenkins.3 is not a table"),
                        ("jenkins[0].mu=-1", "jenkins[0].mu = -1: must be >= 0"),
-                       ("force", "must be key=value")):
+                       ("force", "--set: force: must be key=value")):
         with pytest.raises(SceneError, match=re.escape(words)):
             override(base, [bad])
+
+
+def test_a_missing_key_or_table_is_named_without_a_value(tmp_path):
+    """A key the scene lacks has no value to show: the line names the key (it said "nma = None",
+    as if the user had written None)."""
+    from jointfem.app import nma_options
+
+    with pytest.raises(SceneError) as e:
+        nma_options(load_scene(ROOT / "demos" / "beam2d.toml"))
+    assert str(e.value).startswith(f"{ROOT / 'demos' / 'beam2d.toml'}: [nma]: the scene has no [nma] table")
+    assert "None" not in str(e.value)
+    path = tmp_path / "s.toml"
+    path.write_text((ROOT / "demos" / "sdof_jenkins.toml").read_text().replace("omega_range", "#omega_range"))
+    with pytest.raises(SceneError, match=re.escape(f"{path}: solver.omega_range: required key is missing")):
+        load_scene(path)
 
 
 def test_undamped_forced_mode_that_friction_cannot_hold_is_refused(tmp_path):
