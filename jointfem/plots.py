@@ -32,18 +32,25 @@ def finish(fig, ax, path: Path, *, title: str = "", legend_size: int = 8) -> Pat
     return Path(path)
 
 
-def readable_axes(ax, *, log_y: bool = True) -> None:
-    """The frequency also in rad/s, the unit of the scene's inputs, on a second axis at the top (the
-    x axis is in Hz), and labels on the minor ticks of a log axis that spans few decades (matplotlib
-    labels only the decades by default: the beam's FRF showed just 1e-4)."""
+def readable_axes(ax, *, hz: str | None = "x") -> None:
+    """What a reader needs to take a number off ``ax``: the frequency also in rad/s, the unit of the
+    scene's inputs, on a secondary axis facing the one in Hz (``hz``: "x" puts it on top, "y" on the
+    right; None where no axis is a frequency), and labels on the minor ticks of each log axis that
+    spans up to two decades (matplotlib labels only the decades once an axis spans more than one: a
+    range from 0.02 to 0.5 showed just 1e-1).  Call it once the scales are set: set_xscale and
+    set_yscale replace the formatters."""
     from matplotlib.ticker import LogFormatterSciNotation
 
-    top = ax.secondary_xaxis("top", functions=(lambda f: 2 * np.pi * f, lambda w: w / (2 * np.pi)))
-    top.set_xlabel("omega [rad/s]", fontsize=8)
-    top.tick_params(labelsize=7)
-    if log_y:
-        ax.yaxis.set_minor_formatter(LogFormatterSciNotation(labelOnlyBase=False, minor_thresholds=(2, 0.5)))
-        ax.tick_params(axis="y", which="minor", labelsize=7)
+    if hz is not None:
+        to_rad_s = (lambda f: 2 * np.pi * f, lambda w: w / (2 * np.pi))
+        rad_s = (ax.secondary_xaxis("top", functions=to_rad_s) if hz == "x"
+                 else ax.secondary_yaxis("right", functions=to_rad_s))
+        (rad_s.set_xlabel if hz == "x" else rad_s.set_ylabel)("omega [rad/s]", fontsize=8)
+        rad_s.tick_params(labelsize=7)
+    for name, axis in (("x", ax.xaxis), ("y", ax.yaxis)):
+        if axis.get_scale() == "log":
+            axis.set_minor_formatter(LogFormatterSciNotation(labelOnlyBase=False, minor_thresholds=(2, 0.5)))
+            ax.tick_params(axis=name, which="minor", labelsize=7)
 
 
 def plot_unconverged(ax, x, y, bad, *, label: str, **kw):
@@ -186,7 +193,7 @@ def plot_compare(results, output: str, frf_path: Path, pareto_path: Path, *, tit
                     **({"color": "k"} if i == 0 else {}))
     ax.set_xlabel("frequency [Hz]")
     ax.set_ylabel(f"{output}: 1st harmonic amplitude [m]")
-    readable_axes(ax, log_y=False)
+    readable_axes(ax)
     finish(fig, ax, frf_path, title=title, legend_size=7)
 
     fig, ax = plt.subplots(figsize=(6.5, 4.5))
