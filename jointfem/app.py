@@ -587,7 +587,7 @@ def write_force(response, scene: Scene, out: Path, *, method: str, rom_options: 
     output's first-harmonic amplitude), branch.npz, summary.json, force.png (log-log) and, for a
     continuum ``structure``, shape.npz.  branch.npz holds what a sweep's does for `jointfem plot`
     and `export` (the output layout, the pairs, omega per point), and the force per point."""
-    from .plots import pyplot
+    from .plots import plot_force
     from .results import output_arrays
 
     out = Path(out)
@@ -631,19 +631,8 @@ def write_force(response, scene: Scene, out: Path, *, method: str, rom_options: 
                **({"rom": {"modes": rom_options.modes, "tvd": rom_options.tvd, "tvd_kind": rom_options.tvd_kind}}
                   if method != "full" and rom_options is not None else {})}
     atomic_write(out / "summary.json", lambda p: Path(p).write_text(json.dumps(summary, indent=2, default=float)))
-    plt = pyplot()
-    fig, ax = plt.subplots(figsize=(6.4, 4.2))
-    for n in names:
-        ax.loglog(response.scale * F1, response.amplitude(n), label=n)
-    ax.set_xlabel("force amplitude [N]")
-    ax.set_ylabel("first-harmonic amplitude [m]")
-    ax.set_title(f"{scene.name} at {response.omega:.6g} rad/s ({response.omega / (2 * np.pi):.5g} Hz), {method}",
-                 fontsize=10)
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    atomic_write(out / "force.png", lambda p: fig.savefig(p, dpi=100, format="png"))
-    plt.close(fig)
+    plot_force(response, F1, out / "force.png",
+               title=f"{scene.name} at {response.omega:.6g} rad/s ({response.omega / (2 * np.pi):.5g} Hz), {method}")
     return summary
 
 

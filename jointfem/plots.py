@@ -211,6 +211,34 @@ def plot_compare(results, output: str, frf_path: Path, pareto_path: Path, *, tit
     return Path(frf_path), finish(fig, ax, pareto_path, title=title, legend_size=7)
 
 
+def write_png(fig, path: Path, *, dpi: int) -> Path:
+    """Save ``fig`` as a PNG through a temporary file (results.atomic_write: a run stopped half-way
+    leaves the old picture or none), and close it."""
+    from .results import atomic_write
+
+    path = Path(path)
+    atomic_write(path, lambda p: fig.savefig(p, dpi=dpi, format="png"))
+    pyplot().close(fig)
+    return path
+
+
+def plot_force(response, force_N: float, path: Path, *, title: str = "") -> Path:
+    """A force sweep (analysis.force): each output's first-harmonic amplitude against the force
+    amplitude, ``force_N`` times the sweep's scale, log-log."""
+    plt = pyplot()
+    fig, ax = plt.subplots(figsize=(6.4, 4.2))
+    for n in response.outputs:
+        ax.loglog(response.scale * force_N, response.amplitude(n), label=n)
+    ax.set_xlabel("force amplitude [N]")
+    ax.set_ylabel("first-harmonic amplitude [m]")
+    readable_axes(ax, hz=None)
+    ax.set_title(title, fontsize=10)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    return write_png(fig, path, dpi=100)
+
+
 def plot_backbone(bb, path: Path, *, title: str = "") -> Path:
     """A nonlinear mode (analysis.nma.Backbone): frequency (Hz) and modal damping ratio against the
     amplitude at its output (log axis), and below the share of pair-time per contact state."""

@@ -1,0 +1,90 @@
+"""The pictures the commands write (issue 50, item 8): a reader must be able to take a number off
+each.  Every frequency axis in Hz has omega in rad/s, the unit of the scene's inputs, on a secondary
+axis, and every log axis has at least two labelled ticks inside its limits.  Each picture is drawn
+from a small real result (the SDOF Jenkins oscillator, demos/sdof_jenkins.toml, at H = 3) and looked
+at as it is saved."""
+from __future__ import annotations
+
+import matplotlib.figure
+import numpy as np
+import pytest
+
+from conftest import ROOT
+from jointfem.cli import main
+
+SCENE = str(ROOT / "demos" / "sdof_jenkins.toml")
+FAST = ["--harmonics", "3", "--samples", "64", "--quiet"]
+
+
+@pytest.fixture
+def saved(monkeypatch):
+    """{picture name: matplotlib Figure} of every picture saved while the test runs.  The figure is
+    taken after its savefig, which draws it: its tick labels and the limits of its secondary axes
+    are then those of the file."""
+    figures = {}
+    savefig = matplotlib.figure.Figure.savefig
+
+    def spy(fig, path, *a, **k):
+        savefig(fig, path, *a, **k)
+        # by the picture's name: atomic_write saves "force.png" as ".force.png.<random>.png", the state
+        # map "states_branch.png" as "states_branch.tmp.png", before renaming it
+        figures[str(path).rsplit("/", 1)[-1].lstrip(".").split(".")[0] + ".png"] = fig
+
+    monkeypatch.setattr(matplotlib.figure.Figure, "savefig", spy)
+    return figures
+
+
+def labelled_ticks(axis) -> list[tuple[float, str]]:
+    """(position, text) of the tick labels a reader sees on ``axis`` (major and minor) inside its
+    limits."""
+    lo, hi = sorted(axis.get_view_interval())
+    k = 0 if axis.axis_name == "x" else 1
+    seen = {(t.get_position()[k], t.get_text()) for minor in (False, True) for t in axis.get_ticklabels(minor=minor)
+            if t.get_visible() and t.get_text()}
+    return sorted((x, s) for x, s in seen if lo * (1 - 1e-9) <= x <= hi * (1 + 1e-9))
+
+
+def assert_log_axes_readable(ax):
+    """Each log axis of ``ax`` shows at least two labelled ticks inside its limits."""
+    for axis in (ax.xaxis, ax.yaxis):
+        if axis.get_scale() == "log":
+            ticks = labelled_ticks(axis)
+            assert len(ticks) >= 2, (axis.axis_name, axis.get_view_interval(), ticks)
+
+
+def assert_rad_s(ax, hz: str):
+    """``ax`` has one secondary axis in rad/s facing its axis in Hz (``hz``: "x" or "y") whose
+    scale is 2 pi times the Hz: its limits are 2 pi times those in Hz, and a frequency f in Hz and
+    2 pi f on the secondary axis stand at the same place on the screen.  Returns that axis."""
+    label = (lambda c: c.get_xlabel()) if hz == "x" else (lambda c: c.get_ylabel())
+    rad_s = [c for c in ax.child_axes if "rad/s" in label(c)]
+    assert len(rad_s) == 1, [label(c) for c in ax.child_axes]
+    sec = rad_s[0]
+    lim, sec_lim = (ax.get_xlim(), sec.get_xlim()) if hz == "x" else (ax.get_ylim(), sec.get_ylim())
+    np.testing.assert_allclose(sec_lim, 2 * np.pi * np.asarray(lim), rtol=1e-12)
+    k = 0 if hz == "x" else 1
+    f = np.linspace(*lim, 5)
+
+    def screen(a, values):
+        """Where ``values`` on ``a``'s frequency axis stand on the screen (along that axis)."""
+        other = np.full_like(values, a.get_ylim()[0] if hz == "x" else a.get_xlim()[0])
+        return a.transData.transform(np.column_stack([values, other] if hz == "x" else [other, values]))[:, k]
+
+    np.testing.assert_allclose(screen(sec, 2 * np.pi * f), screen(ax, f), atol=1e-6)
+    # and its own ticks are labelled, at least two of them in its limits
+    assert len(labelled_ticks(sec.xaxis if hz == "x" else sec.yaxis)) >= 2
+    return sec
+
+
+def test_force_picture_labels_both_log_axes_between_decades(tmp_path, saved):
+    """force.png (`jointfem force`, plots.plot_force): a sweep from 0.02 to 0.4 N at 1.2 rad/s, all
+    stuck (0.036 to 0.71 m), spans 1.3 decades in force and in amplitude with only 1e-1 as a decade
+    inside either axis: without labels between the decades neither could be read."""
+    assert main(["force", SCENE, "--omega", "1.2", "--scale", "0.1", "2.0", "--out", str(tmp_path / "f"), *FAST]) == 0
+    (ax,) = saved["force.png"].axes
+    assert ax.get_xscale() == ax.get_yscale() == "log"
+    for lo, hi in (ax.get_xlim(), ax.get_ylim()):
+        assert [d for d in (0.01, 0.1, 1.0) if lo < d < hi] == [0.1], (lo, hi)  # one decade inside
+    assert_log_axes_readable(ax)
+    # the labels name their ticks: 0.2 N is written as 2 x 10^-1 where it stands
+    assert any(abs(x - 0.2) < 1e-12 and r"2\times10^{-1}" in s for x, s in labelled_ticks(ax.xaxis))
