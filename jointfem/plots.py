@@ -176,7 +176,6 @@ def plot_levels(curves: list[tuple[str, FrequencyResponse]], output: str, path: 
     ax.set_xlabel("frequency [Hz]")
     ax.set_ylabel(f"{output} receptance [m/N]")
     ax.set_yscale("log")
-    readable_axes(ax)
     return finish(fig, ax, path, title=title)
 
 
@@ -264,7 +263,8 @@ def plot_backbone(bb, path: Path, *, title: str = "") -> Path:
         ax.set_ylim(-0.02, 1.02)
         ax.set_ylabel("share of\npair-time")
         ax.legend(fontsize=7, ncol=3, loc="center left")
-    for row in axes[:, 0]:
+    for k, row in enumerate(axes[:, 0]):
+        readable_axes(row, hz="y" if k == 0 else None)
         row.grid(True, which="both", alpha=0.3)
     axes[-1, 0].set_xlabel(f"first-harmonic amplitude at {bb.output} [m]")
     fig.tight_layout()

@@ -16,11 +16,10 @@ SCENE = str(ROOT / "demos" / "sdof_jenkins.toml")
 FAST = ["--harmonics", "3", "--samples", "64", "--quiet"]
 
 
-@pytest.fixture
-def saved(monkeypatch):
-    """{picture name: matplotlib Figure} of every picture saved while the test runs.  The figure is
-    taken after its savefig, which draws it: its tick labels and the limits of its secondary axes
-    are then those of the file."""
+def record_pictures(monkeypatch) -> dict:
+    """{picture name: matplotlib Figure} of every picture saved from now on.  The figure is taken
+    after its savefig, which draws it: its tick labels and the limits of its secondary axes are
+    then those of the file."""
     figures = {}
     savefig = matplotlib.figure.Figure.savefig
 
@@ -32,6 +31,12 @@ def saved(monkeypatch):
 
     monkeypatch.setattr(matplotlib.figure.Figure, "savefig", spy)
     return figures
+
+
+@pytest.fixture
+def saved(monkeypatch):
+    """The pictures saved by the test (record_pictures)."""
+    return record_pictures(monkeypatch)
 
 
 def labelled_ticks(axis) -> list[tuple[float, str]]:
@@ -88,3 +93,32 @@ def test_force_picture_labels_both_log_axes_between_decades(tmp_path, saved):
     assert_log_axes_readable(ax)
     # the labels name their ticks: 0.2 N is written as 2 x 10^-1 where it stands
     assert any(abs(x - 0.2) < 1e-12 and r"2\times10^{-1}" in s for x, s in labelled_ticks(ax.xaxis))
+
+
+@pytest.fixture(scope="module")
+def backbone_pictures(tmp_path_factory):
+    """{name: Figure} of `jointfem nma` on the oscillator from 0.3 to 5 m (stuck below 1 m, then
+    slipping: 0.225 Hz down to about 0.17 Hz)."""
+    with pytest.MonkeyPatch.context() as mp:
+        figures = record_pictures(mp)
+        out = tmp_path_factory.mktemp("nma")
+        assert main(["nma", SCENE, "--set", "nma.amplitude_range=[0.3, 5.0]", "--out", str(out), *FAST]) == 0
+    return figures
+
+
+def test_backbone_picture_gives_its_frequency_in_rad_s_and_labels_its_amplitude(backbone_pictures):
+    """backbone.png (plots.plot_backbone): the frequency (y, Hz) has omega in rad/s on the right,
+    2 pi times the Hz; the amplitude axis that the rows share spans 1.3 decades with only 1 m as a
+    decade inside, and is labelled between them."""
+    fig = backbone_pictures["backbone.png"]
+    top, *rest = fig.axes
+    sec = assert_rad_s(top, "y")
+    # the stuck mode, sqrt(k + kt) = sqrt(2) rad/s, at 0.225 Hz: inside both axes' limits
+    assert top.get_ylim()[0] < np.sqrt(2) / (2 * np.pi) < top.get_ylim()[1]
+    assert sec.get_ylim()[0] < np.sqrt(2) < sec.get_ylim()[1]
+    bottom = rest[-1]
+    assert all(ax.get_shared_x_axes().joined(ax, bottom) for ax in fig.axes)
+    lo, hi = bottom.get_xlim()
+    assert bottom.get_xscale() == "log" and [d for d in (0.1, 1.0, 10.0) if lo < d < hi] == [1.0], (lo, hi)
+    assert_log_axes_readable(bottom)
+
