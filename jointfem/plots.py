@@ -176,6 +176,7 @@ def plot_levels(curves: list[tuple[str, FrequencyResponse]], output: str, path: 
     ax.set_xlabel("frequency [Hz]")
     ax.set_ylabel(f"{output} receptance [m/N]")
     ax.set_yscale("log")
+    readable_axes(ax)
     return finish(fig, ax, path, title=title)
 
 
@@ -301,4 +302,5 @@ def plot_synthesized(bb, synth: dict, path: Path, *, frf: dict | None = None, ou
     ax.set_xlabel("frequency [Hz]")
     ax.set_ylabel(f"first-harmonic amplitude at {bb.output} [m]")
     ax.set_yscale("log")
+    readable_axes(ax)
     return finish(fig, ax, path, title=title)

@@ -122,3 +122,12 @@ def test_backbone_picture_gives_its_frequency_in_rad_s_and_labels_its_amplitude(
     assert bottom.get_xscale() == "log" and [d for d in (0.1, 1.0, 10.0) if lo < d < hi] == [1.0], (lo, hi)
     assert_log_axes_readable(bottom)
 
+
+def test_synthesized_frf_picture_gives_its_frequency_in_rad_s(backbone_pictures):
+    """frf_synthesized.png (plots.plot_synthesized): omega in rad/s on top of the Hz, as frf.png,
+    and its log amplitude axis labelled at two ticks or more."""
+    (ax,) = backbone_pictures["frf_synthesized.png"].axes
+    sec = assert_rad_s(ax, "x")
+    assert sec.get_xlim()[0] < np.sqrt(2) < sec.get_xlim()[1]  # the stuck mode, 1.414 rad/s, in view
+    assert ax.get_yscale() == "log"
+    assert_log_axes_readable(ax)
