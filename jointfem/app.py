@@ -970,7 +970,7 @@ def compare_nma_scene(scene: Scene, methods: str | None, defaults: RomOptions, *
     compare.csv, compare.md and compare_backbone.png into ``out`` and returns the Markdown."""
     from .analysis.compare import parse_method
     from .analysis.nma import compare_backbones
-    from .plots import pyplot
+    from .plots import plot_compare_backbones
     from .results import atomic_write_text, write_table
 
     opts = nma_options(scene)
@@ -997,22 +997,5 @@ def compare_nma_scene(scene: Scene, methods: str | None, defaults: RomOptions, *
                      f"{r['amplitudes_compared']} |" + (f" {r['failure']}" if r["failure"] else ""))
     md = "\n".join(lines) + "\n"
     atomic_write_text(out / "compare.md", md)
-    plt = pyplot()
-    fig, (a1, a2) = plt.subplots(2, 1, figsize=(7.0, 6.0), sharex=True)
-    for r in results:
-        if r.backbone is None:
-            continue
-        bb = r.backbone
-        a1.semilogx(bb.amplitude, bb.omega / (2 * np.pi), label=r.label)
-        a2.semilogx(bb.amplitude, bb.zeta, label=r.label)
-    a1.set_ylabel("frequency [Hz]")
-    a2.set_ylabel("damping ratio [-]")
-    a2.set_xlabel(f"first-harmonic amplitude at {results[0].backbone.output} [m]")
-    for ax in (a1, a2):
-        ax.grid(True, which="both", alpha=0.3)
-        ax.legend(fontsize=8)
-    a1.set_title(f"{scene.name}: mode {opts.mode}", fontsize=10)
-    fig.tight_layout()
-    atomic_write(out / "compare_backbone.png", lambda p: fig.savefig(p, dpi=110, format="png"))
-    plt.close(fig)
+    plot_compare_backbones(results, out / "compare_backbone.png", title=f"{scene.name}: mode {opts.mode}")
     return md

@@ -275,6 +275,30 @@ def plot_backbone(bb, path: Path, *, title: str = "") -> Path:
     return path
 
 
+def plot_compare_backbones(results, path: Path, *, title: str = "") -> Path:
+    """Every method's backbone of a comparison (analysis.nma.compare_backbones): frequency (Hz, and
+    rad/s on the right) and damping ratio against the amplitude at the output, log."""
+    plt = pyplot()
+    fig, (a1, a2) = plt.subplots(2, 1, figsize=(7.0, 6.0), sharex=True)
+    for r in results:
+        if r.backbone is None:
+            continue
+        bb = r.backbone
+        a1.semilogx(bb.amplitude, bb.omega / (2 * np.pi), label=r.label)
+        a2.semilogx(bb.amplitude, bb.zeta, label=r.label)
+    a1.set_ylabel("frequency [Hz]")
+    a2.set_ylabel("damping ratio [-]")
+    a2.set_xlabel(f"first-harmonic amplitude at {results[0].backbone.output} [m]")
+    readable_axes(a1, hz="y")
+    readable_axes(a2, hz=None)
+    for ax in (a1, a2):
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=8)
+    a1.set_title(title, fontsize=10)
+    fig.tight_layout()
+    return write_png(fig, path, dpi=110)
+
+
 def plot_synthesized(bb, synth: dict, path: Path, *, frf: dict | None = None, output: str | None = None,
                      title: str = "") -> Path:
     """The forced response synthesised from a backbone (analysis.nma.synthesize_frf), with the

@@ -131,3 +131,19 @@ def test_synthesized_frf_picture_gives_its_frequency_in_rad_s(backbone_pictures)
     assert sec.get_xlim()[0] < np.sqrt(2) < sec.get_xlim()[1]  # the stuck mode, 1.414 rad/s, in view
     assert ax.get_yscale() == "log"
     assert_log_axes_readable(ax)
+
+
+def test_compare_backbone_picture_gives_its_frequency_in_rad_s_and_labels_its_amplitude(tmp_path, saved):
+    """compare_backbone.png (`compare --analysis nma`, plots.plot_compare_backbones): as backbone.png,
+    omega in rad/s on the right of the Hz and the shared amplitude axis (0.3 to 5 m) labelled between
+    its decades."""
+    assert main(["compare", SCENE, "--analysis", "nma", "--methods", "penalty:1:0", "--set",
+                 "nma.amplitude_range=[0.3, 5.0]", "--out", str(tmp_path / "c"), *FAST]) == 0
+    top, bottom = saved["compare_backbone.png"].axes
+    assert [t.get_text() for t in top.get_legend().get_texts()] == ["full", "penalty:1"]
+    sec = assert_rad_s(top, "y")
+    assert sec.get_ylim()[0] < np.sqrt(2) < sec.get_ylim()[1]
+    lo, hi = bottom.get_xlim()
+    assert bottom.get_shared_x_axes().joined(top, bottom)
+    assert bottom.get_xscale() == "log" and [d for d in (0.1, 1.0, 10.0) if lo < d < hi] == [1.0], (lo, hi)
+    assert_log_axes_readable(bottom)
