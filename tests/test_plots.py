@@ -147,3 +147,17 @@ def test_compare_backbone_picture_gives_its_frequency_in_rad_s_and_labels_its_am
     assert bottom.get_shared_x_axes().joined(top, bottom)
     assert bottom.get_xscale() == "log" and [d for d in (0.1, 1.0, 10.0) if lo < d < hi] == [1.0], (lo, hi)
     assert_log_axes_readable(bottom)
+
+
+def test_state_map_of_a_sweep_gives_its_frequency_in_rad_s(tmp_path, saved):
+    """states_branch.png of a frequency sweep (`jointfem plot`, viz.plot_state_map) has its columns
+    at Hz as frf.png: both carry omega in rad/s on top, 2 pi times the Hz, over the sweep's 0.5 to 2
+    rad/s (the scene's omega_range)."""
+    out = tmp_path / "s"
+    assert main(["frf", SCENE, "--out", str(out), *FAST]) == 0
+    assert main(["plot", str(out), "--quiet"]) == 0
+    for name in ("frf.png", "states_branch.png"):
+        ax = saved[name].axes[0]
+        sec = assert_rad_s(ax, "x")
+        lo, hi = sec.get_xlim()
+        assert lo <= 0.5 and 2.0 <= hi < 2.5, (name, lo, hi)
