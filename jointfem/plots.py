@@ -208,6 +208,7 @@ def plot_compare(results, output: str, frf_path: Path, pareto_path: Path, *, tit
                label=f"{results[0].spec.label} reference ({results[0].online_s:.1f} s)")
     ax.set_xlabel("online time [s]")
     ax.set_ylabel("largest curve error [% of peak]")
+    readable_axes(ax, hz=None)
     return Path(frf_path), finish(fig, ax, pareto_path, title=title, legend_size=7)
 
 

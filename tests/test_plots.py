@@ -161,3 +161,34 @@ def test_state_map_of_a_sweep_gives_its_frequency_in_rad_s(tmp_path, saved):
         sec = assert_rad_s(ax, "x")
         lo, hi = sec.get_xlim()
         assert lo <= 0.5 and 2.0 <= hi < 2.5, (name, lo, hi)
+
+
+def test_compare_pictures_give_rad_s_and_label_the_pareto_log_axes(tmp_path, saved):
+    """compare_frf.png (plots.plot_compare) has omega in rad/s on top of the Hz; compare_pareto.png,
+    log-log, labels at least two ticks on each axis.  The online times are set to 0.3 s (the
+    reference) and 0.02 s (the ROM), 1.2 decades with only 0.1 s as a decade inside, so that the
+    time axis does not depend on the machine's speed."""
+    import dataclasses
+
+    from jointfem.analysis.compare import compare, parse_method
+    from jointfem.analysis.frf import SweepOptions
+    from jointfem.harmonics import Harmonics
+    from jointfem.models.lumped import create_lumped
+    from jointfem.plots import plot_compare
+    from jointfem.rom import RomOptions
+
+    from conftest import sdof
+
+    results = compare(create_lumped(sdof(0.2)), [parse_method("penalty:1:0", RomOptions())],
+                      SweepOptions(0.5, 2.0, Harmonics(3, 64)), output="m.x")
+    assert [r.spec.label for r in results] == ["full", "penalty:1"] and not results[1].failure
+    results = [dataclasses.replace(r, online_s=t) for r, t in zip(results, (0.3, 0.02))]
+    plot_compare(results, "m.x", tmp_path / "compare_frf.png", tmp_path / "compare_pareto.png")
+    (ax,) = saved["compare_frf.png"].axes
+    sec = assert_rad_s(ax, "x")
+    assert sec.get_xlim()[0] <= 0.5 and 2.0 <= sec.get_xlim()[1] < 2.5
+    (ax,) = saved["compare_pareto.png"].axes
+    assert ax.get_xscale() == ax.get_yscale() == "log"
+    lo, hi = ax.get_xlim()
+    assert [d for d in (0.01, 0.1, 1.0) if lo < d < hi] == [0.1], (lo, hi)
+    assert_log_axes_readable(ax)
