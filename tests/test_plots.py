@@ -163,6 +163,27 @@ def test_state_map_of_a_sweep_gives_its_frequency_in_rad_s(tmp_path, saved):
         assert lo <= 0.5 and 2.0 <= hi < 2.5, (name, lo, hi)
 
 
+def test_levels_picture_gives_its_frequency_in_rad_s_and_labels_its_log_axis(tmp_path, saved):
+    """levels.png (plots.plot_levels, demos/jointed_beam_levels.py), of sweeps at 0.1 N (stuck) and
+    0.3 N (slipping about its peak): omega in rad/s on top of the Hz, and at least two labelled
+    ticks on its log receptance axis."""
+    from jointfem.analysis.frf import SweepOptions, compute_frf
+    from jointfem.harmonics import Harmonics
+    from jointfem.models.lumped import create_lumped
+    from jointfem.plots import plot_levels
+
+    from conftest import sdof
+
+    sweeps = [(f"{F:g} N", compute_frf(create_lumped(sdof(F)), SweepOptions(0.5, 2.0, Harmonics(3, 64))))
+              for F in (0.1, 0.3)]
+    plot_levels(sweeps, "m.x", tmp_path / "levels.png")
+    (ax,) = saved["levels.png"].axes
+    sec = assert_rad_s(ax, "x")
+    assert sec.get_xlim()[0] <= 0.5 and 2.0 <= sec.get_xlim()[1] < 2.5
+    assert ax.get_yscale() == "log"
+    assert_log_axes_readable(ax)
+
+
 def test_compare_pictures_give_rad_s_and_label_the_pareto_log_axes(tmp_path, saved):
     """compare_frf.png (plots.plot_compare) has omega in rad/s on top of the Hz; compare_pareto.png,
     log-log, labels at least two ticks on each axis.  The online times are set to 0.3 s (the
