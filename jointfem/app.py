@@ -587,7 +587,7 @@ def write_force(response, scene: Scene, out: Path, *, method: str, rom_options: 
     output's first-harmonic amplitude), branch.npz, summary.json, force.png (log-log) and, for a
     continuum ``structure``, shape.npz.  branch.npz holds what a sweep's does for `jointfem plot`
     and `export` (the output layout, the pairs, omega per point), and the force per point."""
-    from .plots import pyplot
+    from .plots import plot_force
     from .results import output_arrays
 
     out = Path(out)
@@ -631,19 +631,8 @@ def write_force(response, scene: Scene, out: Path, *, method: str, rom_options: 
                **({"rom": {"modes": rom_options.modes, "tvd": rom_options.tvd, "tvd_kind": rom_options.tvd_kind}}
                   if method != "full" and rom_options is not None else {})}
     atomic_write(out / "summary.json", lambda p: Path(p).write_text(json.dumps(summary, indent=2, default=float)))
-    plt = pyplot()
-    fig, ax = plt.subplots(figsize=(6.4, 4.2))
-    for n in names:
-        ax.loglog(response.scale * F1, response.amplitude(n), label=n)
-    ax.set_xlabel("force amplitude [N]")
-    ax.set_ylabel("first-harmonic amplitude [m]")
-    ax.set_title(f"{scene.name} at {response.omega:.6g} rad/s ({response.omega / (2 * np.pi):.5g} Hz), {method}",
-                 fontsize=10)
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    atomic_write(out / "force.png", lambda p: fig.savefig(p, dpi=100, format="png"))
-    plt.close(fig)
+    plot_force(response, F1, out / "force.png",
+               title=f"{scene.name} at {response.omega:.6g} rad/s ({response.omega / (2 * np.pi):.5g} Hz), {method}")
     return summary
 
 
@@ -981,7 +970,7 @@ def compare_nma_scene(scene: Scene, methods: str | None, defaults: RomOptions, *
     compare.csv, compare.md and compare_backbone.png into ``out`` and returns the Markdown."""
     from .analysis.compare import parse_method
     from .analysis.nma import compare_backbones
-    from .plots import pyplot
+    from .plots import plot_compare_backbones
     from .results import atomic_write_text, write_table
 
     opts = nma_options(scene)
@@ -1008,22 +997,5 @@ def compare_nma_scene(scene: Scene, methods: str | None, defaults: RomOptions, *
                      f"{r['amplitudes_compared']} |" + (f" {r['failure']}" if r["failure"] else ""))
     md = "\n".join(lines) + "\n"
     atomic_write_text(out / "compare.md", md)
-    plt = pyplot()
-    fig, (a1, a2) = plt.subplots(2, 1, figsize=(7.0, 6.0), sharex=True)
-    for r in results:
-        if r.backbone is None:
-            continue
-        bb = r.backbone
-        a1.semilogx(bb.amplitude, bb.omega / (2 * np.pi), label=r.label)
-        a2.semilogx(bb.amplitude, bb.zeta, label=r.label)
-    a1.set_ylabel("frequency [Hz]")
-    a2.set_ylabel("damping ratio [-]")
-    a2.set_xlabel(f"first-harmonic amplitude at {results[0].backbone.output} [m]")
-    for ax in (a1, a2):
-        ax.grid(True, which="both", alpha=0.3)
-        ax.legend(fontsize=8)
-    a1.set_title(f"{scene.name}: mode {opts.mode}", fontsize=10)
-    fig.tight_layout()
-    atomic_write(out / "compare_backbone.png", lambda p: fig.savefig(p, dpi=110, format="png"))
-    plt.close(fig)
+    plot_compare_backbones(results, out / "compare_backbone.png", title=f"{scene.name}: mode {opts.mode}")
     return md

@@ -32,18 +32,25 @@ def finish(fig, ax, path: Path, *, title: str = "", legend_size: int = 8) -> Pat
     return Path(path)
 
 
-def readable_axes(ax, *, log_y: bool = True) -> None:
-    """The frequency also in rad/s, the unit of the scene's inputs, on a second axis at the top (the
-    x axis is in Hz), and labels on the minor ticks of a log axis that spans few decades (matplotlib
-    labels only the decades by default: the beam's FRF showed just 1e-4)."""
+def readable_axes(ax, *, hz: str | None = "x") -> None:
+    """What a reader needs to take a number off ``ax``: the frequency also in rad/s, the unit of the
+    scene's inputs, on a secondary axis facing the one in Hz (``hz``: "x" puts it on top, "y" on the
+    right; None where no axis is a frequency), and labels on the minor ticks of each log axis that
+    spans up to two decades (matplotlib labels only the decades once an axis spans more than one: a
+    range from 0.02 to 0.5 showed just 1e-1).  Call it once the scales are set: set_xscale and
+    set_yscale replace the formatters."""
     from matplotlib.ticker import LogFormatterSciNotation
 
-    top = ax.secondary_xaxis("top", functions=(lambda f: 2 * np.pi * f, lambda w: w / (2 * np.pi)))
-    top.set_xlabel("omega [rad/s]", fontsize=8)
-    top.tick_params(labelsize=7)
-    if log_y:
-        ax.yaxis.set_minor_formatter(LogFormatterSciNotation(labelOnlyBase=False, minor_thresholds=(2, 0.5)))
-        ax.tick_params(axis="y", which="minor", labelsize=7)
+    if hz is not None:
+        to_rad_s = (lambda f: 2 * np.pi * f, lambda w: w / (2 * np.pi))
+        rad_s = (ax.secondary_xaxis("top", functions=to_rad_s) if hz == "x"
+                 else ax.secondary_yaxis("right", functions=to_rad_s))
+        (rad_s.set_xlabel if hz == "x" else rad_s.set_ylabel)("omega [rad/s]", fontsize=8)
+        rad_s.tick_params(labelsize=7)
+    for name, axis in (("x", ax.xaxis), ("y", ax.yaxis)):
+        if axis.get_scale() == "log":
+            axis.set_minor_formatter(LogFormatterSciNotation(labelOnlyBase=False, minor_thresholds=(2, 0.5)))
+            ax.tick_params(axis=name, which="minor", labelsize=7)
 
 
 def plot_unconverged(ax, x, y, bad, *, label: str, **kw):
@@ -186,7 +193,7 @@ def plot_compare(results, output: str, frf_path: Path, pareto_path: Path, *, tit
                     **({"color": "k"} if i == 0 else {}))
     ax.set_xlabel("frequency [Hz]")
     ax.set_ylabel(f"{output}: 1st harmonic amplitude [m]")
-    readable_axes(ax, log_y=False)
+    readable_axes(ax)
     finish(fig, ax, frf_path, title=title, legend_size=7)
 
     fig, ax = plt.subplots(figsize=(6.5, 4.5))
@@ -201,7 +208,36 @@ def plot_compare(results, output: str, frf_path: Path, pareto_path: Path, *, tit
                label=f"{results[0].spec.label} reference ({results[0].online_s:.1f} s)")
     ax.set_xlabel("online time [s]")
     ax.set_ylabel("largest curve error [% of peak]")
+    readable_axes(ax, hz=None)
     return Path(frf_path), finish(fig, ax, pareto_path, title=title, legend_size=7)
+
+
+def write_png(fig, path: Path, *, dpi: int) -> Path:
+    """Save ``fig`` as a PNG through a temporary file (results.atomic_write: a run stopped half-way
+    leaves the old picture or none), and close it."""
+    from .results import atomic_write
+
+    path = Path(path)
+    atomic_write(path, lambda p: fig.savefig(p, dpi=dpi, format="png"))
+    pyplot().close(fig)
+    return path
+
+
+def plot_force(response, force_N: float, path: Path, *, title: str = "") -> Path:
+    """A force sweep (analysis.force): each output's first-harmonic amplitude against the force
+    amplitude, ``force_N`` times the sweep's scale, log-log."""
+    plt = pyplot()
+    fig, ax = plt.subplots(figsize=(6.4, 4.2))
+    for n in response.outputs:
+        ax.loglog(response.scale * force_N, response.amplitude(n), label=n)
+    ax.set_xlabel("force amplitude [N]")
+    ax.set_ylabel("first-harmonic amplitude [m]")
+    readable_axes(ax, hz=None)
+    ax.set_title(title, fontsize=10)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    return write_png(fig, path, dpi=100)
 
 
 def plot_backbone(bb, path: Path, *, title: str = "") -> Path:
@@ -229,7 +265,8 @@ def plot_backbone(bb, path: Path, *, title: str = "") -> Path:
         ax.set_ylim(-0.02, 1.02)
         ax.set_ylabel("share of\npair-time")
         ax.legend(fontsize=7, ncol=3, loc="center left")
-    for row in axes[:, 0]:
+    for k, row in enumerate(axes[:, 0]):
+        readable_axes(row, hz="y" if k == 0 else None)
         row.grid(True, which="both", alpha=0.3)
     axes[-1, 0].set_xlabel(f"first-harmonic amplitude at {bb.output} [m]")
     fig.tight_layout()
@@ -237,6 +274,30 @@ def plot_backbone(bb, path: Path, *, title: str = "") -> Path:
     fig.savefig(path, dpi=120)
     plt.close(fig)
     return path
+
+
+def plot_compare_backbones(results, path: Path, *, title: str = "") -> Path:
+    """Every method's backbone of a comparison (analysis.nma.compare_backbones): frequency (Hz, and
+    rad/s on the right) and damping ratio against the amplitude at the output, log."""
+    plt = pyplot()
+    fig, (a1, a2) = plt.subplots(2, 1, figsize=(7.0, 6.0), sharex=True)
+    for r in results:
+        if r.backbone is None:
+            continue
+        bb = r.backbone
+        a1.semilogx(bb.amplitude, bb.omega / (2 * np.pi), label=r.label)
+        a2.semilogx(bb.amplitude, bb.zeta, label=r.label)
+    a1.set_ylabel("frequency [Hz]")
+    a2.set_ylabel("damping ratio [-]")
+    a2.set_xlabel(f"first-harmonic amplitude at {results[0].backbone.output} [m]")
+    readable_axes(a1, hz="y")
+    readable_axes(a2, hz=None)
+    for ax in (a1, a2):
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=8)
+    a1.set_title(title, fontsize=10)
+    fig.tight_layout()
+    return write_png(fig, path, dpi=110)
 
 
 def plot_synthesized(bb, synth: dict, path: Path, *, frf: dict | None = None, output: str | None = None,
@@ -266,4 +327,5 @@ def plot_synthesized(bb, synth: dict, path: Path, *, frf: dict | None = None, ou
     ax.set_xlabel("frequency [Hz]")
     ax.set_ylabel(f"first-harmonic amplitude at {bb.output} [m]")
     ax.set_yscale("log")
+    readable_axes(ax)
     return finish(fig, ax, path, title=title)

@@ -119,7 +119,7 @@ def plot_state_map(data: dict, path: Path, *, title: str = "") -> Picture:
     from matplotlib.collections import PolyCollection
     from matplotlib.patches import Patch
 
-    from .plots import pyplot
+    from .plots import pyplot, readable_axes
 
     plt = pyplot()
     share = np.stack([fractions(data, i) for i in range(data["states"].shape[0])])  # (points, P, 3)
@@ -154,6 +154,8 @@ def plot_state_map(data: dict, path: Path, *, title: str = "") -> Picture:
     ax.set_xlabel(f"log10 of the first-harmonic amplitude at {data['output']} [m]" if backbone
                   else f"log10 of the force amplitude [N] at {float(data['omega'][0]):.6g} rad/s" if force
                   else "frequency [Hz]")
+    if not (backbone or force):
+        readable_axes(ax)
     ax.set_ylabel("contact pair")
     shown = tuple(k for k in range(3) if (share[..., k] > 0).any())
     labels = [STATE_NAMES[k] for k in range(3)]
