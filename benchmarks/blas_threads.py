@@ -8,18 +8,34 @@ to threadpoolctl; linalg.sweep_blas), twice each, interleaved so that they share
 Recorded in docs/benchmarks_blas_threads.md.  Prints the online times, the ratio, the point
 counts and how far the two thread counts' points are apart (omega and coefficients, relative).
 """
+import argparse
 import os
-import sys
 
 import numpy as np
 
 from jointfem.app import solve_scene
+from jointfem.rom import METHODS
 from jointfem.scene import load_scene
 
 
-def main():
-    args = sys.argv[1:]
-    for path, method in zip(args[::2], args[1::2]):
+class _Runs(argparse.Action):
+    """SCENE METHOD pairs, refused while parsing (a lone scene, a method misspelt), not after the first
+    scene's sweeps."""
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        if len(values) % 2:
+            parser.error(f"runs: SCENE METHOD pairs, got {len(values)} words")
+        for method in values[1::2]:
+            if method not in METHODS:
+                parser.error(f"runs: method {method!r} is not one of {', '.join(METHODS)}")
+        setattr(namespace, self.dest, list(zip(values[::2], values[1::2])))
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description="What OpenBLAS's threads do to a sweep: 1 thread against 2.")
+    ap.add_argument("runs", nargs="+", action=_Runs, metavar="SCENE METHOD",
+                    help="a scene file and the method to sweep it with, as many pairs as wanted")
+    for path, method in ap.parse_args(argv).runs:
         scene = load_scene(path)
         times, last = {1: [], 2: []}, {}
         for rep in range(2):

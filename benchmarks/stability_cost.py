@@ -12,19 +12,23 @@ ARPACK tolerance 1e-12, a Krylov space twice the count, the shift and radius of 
 online times, the ratios with over without, and how far the "on" runs' largest real parts and
 verdicts are apart from the first.
 """
-import sys
-import time
+import argparse
 
 import numpy as np
 
 from jointfem.analysis import stability as st
 from jointfem.app import solve_scene
+from jointfem.rom import METHODS
 from jointfem.scene import load_scene
 
 
-def main():
-    scene = load_scene(sys.argv[1])
-    method = sys.argv[2] if len(sys.argv) > 2 else "full"
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("scene", help="scene file (TOML)")
+    ap.add_argument("method", nargs="?", default="full", choices=METHODS, help="default full")
+    args = ap.parse_args(argv)
+    scene = load_scene(args.scene)
+    method = args.method
     now = (st.FIRST, st.ARNOLDI_TOL, st.DENSE_LIMIT, st.NCV_FACTOR, st.ExponentTracker.__call__, st.SHIFT, st.RADIUS,
            st.MEMORY_CANDIDATES)
 

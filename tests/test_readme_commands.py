@@ -9,9 +9,9 @@ Two words are added, each for a reason the README states beside the command: ``m
 takes ``--allow-run-as-root`` (and ``--oversubscribe``: a machine with fewer cores than ranks), as
 its comment says.  ``make demo`` and ``make test`` are not run here: the second is this suite, and
 the first runs demos/beam2d_converged.toml (below) and demos/jointed_beam_levels.py
-(tests/test_demos.py).  The fenced blocks of docs/*.md hold benchmarks' commands only (minutes to
-an hour each, recorded with their output in those files), and scenes, which tests/test_docs.py
-loads and sweeps.
+(tests/test_demos.py).  The commands docs/*.md show, benchmarks of minutes to hours for the most
+part, are checked without their work by tests/test_docs_commands.py; its scenes are loaded and swept
+by tests/test_docs.py.
 """
 from __future__ import annotations
 
