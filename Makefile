@@ -84,14 +84,14 @@ bench-scaling-distributed: setup
 bench-online: setup
 	$(PY) benchmarks/online_scaling.py --out docs/benchmarks_online.md
 
-# issue 14's harmonic convergence: the beam at 3 N, exact condensation with the event-accurate AFT,
-# H = 3 to 41 (docs/benchmarks_harmonics.md)
 # issue 46's truncation estimate against the truth at the located peaks: the SDOF Jenkins oscillator,
 # two masses at a 3:1 superharmonic resonance, the beam at 3 N (docs/benchmarks_truncation.md; the
 # lumped cases in a minute, the beam in about 12 min)
 bench-truncation: setup
 	$(PY) benchmarks/truncation.py --out docs/benchmarks_truncation.md
 
+# issue 14's harmonic convergence: the beam at 3 N, exact condensation with the event-accurate AFT,
+# H = 3 to 41 (docs/benchmarks_harmonics.md)
 bench-harmonics: setup
 	$(PY) benchmarks/harmonics.py --out docs/benchmarks_harmonics.md --jobs 2
 
