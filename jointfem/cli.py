@@ -27,11 +27,15 @@ def _reduction(args, scene, method: str | None = None, *,
     """The method and the reduction's options: each flag given, else the scene's [reduction] key
     (app.reduction_of)."""
     from .app import reduction_of
+    from .rom.reductors import MODAL
 
-    # (the scene's [reduction] counts are checked >= 0 where it is read: a negative count is a flag's)
+    # (the scene's [reduction] counts are checked where it is read: a count out of range is a flag's)
+    chosen = scene.reduction.method if method is None else method
     for flag, value in (("--modes", args.modes), ("--tvd", args.tvd)):
-        if value is not None and value < 0:
-            raise RomError(f"{flag} = {value}: must be >= 0")
+        lowest = 1 if flag == "--modes" and chosen in MODAL else 0
+        if value is not None and value < lowest:
+            raise RomError(f"{flag} = {value}: must be >= {lowest}"
+                           + (f" ({chosen} needs at least one vibration mode)" if lowest else ""))
     return reduction_of(scene, method, modes=args.modes, tvd=args.tvd, tvd_kind=args.tvd_kind, offline=offline)
 
 

@@ -110,6 +110,8 @@ def test_rom_errors_are_clear_and_early(tmp_path):
     assert r.returncode == 2 and "5 modes" in r.stderr and not (tmp_path / "p").exists()
     r = _run("frf", scene, "--out", tmp_path / "n", "--method", "penalty", "--modes", "-1", "--quiet")
     assert r.returncode == 2 and "--modes = -1" in r.stderr and not (tmp_path / "n").exists()
+    # the bound the method has: penalty refuses 0 as well, so ">= 0" misled
+    assert "must be >= 1 (penalty needs at least one vibration mode)" in r.stderr
     r = _run("compare", ROOT / "demos" / "beam2d.toml", "--out", tmp_path / "o", "--output", "b9.mid.uy")
     assert r.returncode == 2 and "--output = 'b9.mid.uy'" in r.stderr and not (tmp_path / "o").exists()
 
