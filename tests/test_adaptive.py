@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from conftest import sdof
+from jointfem.scene import load_scene
 from jointfem.analysis.adaptive import HarmonicAdaptation, branch_distance, resize, share_at
 from jointfem.analysis.convergence import amplitude_and_rms, top_harmonic_share
 from jointfem.analysis.frf import SweepOptions, compute_frf, create_problem
@@ -269,3 +270,23 @@ def test_force_and_nma_refuse_auto_harmonics_with_one_line(tmp_path):
         assert not (tmp_path / command).exists()
     r = run("force", scene, "--omega", "1.3", "--scale", "0.01", "0.02", "--harmonics", "3", "--out", tmp_path / "f3")
     assert r.returncode == 0, r.stderr
+
+
+def test_auto_goes_on_from_where_h_was_raised_not_back_down_the_stuck_flank():
+    """The beam demo at H chosen along the branch (issue 50: `jointfem frf demos/beam2d.toml --set
+    'solver.harmonics="auto"'`).  H is raised from 3 where separation starts, at 1690.19 rad/s, and
+    the point lifted to H = 5 lies 0.015 rad/s below the one before it: the secant to it turned the
+    branch back, down the stuck flank (solved at H = 3, a solution at every H, which the retrace rule
+    did not see), out of the window at 785 rad/s, status incomplete.  The heading is now the branch's
+    before H changed, and the retrace rule sees the points that solve the equations at the new H.
+    harmonics_max = 7 keeps it to a minute (the default, 25, takes tens of minutes at full order)."""
+    from jointfem.app import override, solve_scene
+
+    scene = override(load_scene(ROOT / "demos" / "beam2d.toml"),
+                     ['solver.harmonics="auto"', "solver.harmonics_max=7", 'solver.stability="off"'])
+    sol = solve_scene(scene, keep_incomplete=True)
+    assert sol.incomplete is None
+    omega = sol.frf.omega
+    assert omega.min() >= scene.solver.omega_min and omega.max() >= scene.solver.omega_max
+    info = sol.frf.info["harmonics_adaptive"]
+    assert info["H_top"] == 7 and info["changes"][0]["from"] == 3

@@ -177,6 +177,8 @@ class _Tracer:
         self.top: dict = {}  # output -> the largest first-harmonic amplitude on the branch so far
         self.shadow = None  # (H, the point solved at H + step, the point) of the last check solved
         self.outputs = None
+        self.lifted = None  # (the point whose H changed, as it was, and the one before it)
+        self._on_branch: dict = {}  # (id of a point, H) -> (the point, on_branch_at)
 
     def past(self, p: ContinuationPoint) -> bool:
         return (p.lam - self.omega_end) * np.sign(self.omega_end - self.omega_start) >= 0
@@ -277,6 +279,36 @@ class _Tracer:
                 worst = max(worst, ad.tol * dist)
         return np.concatenate([[worst], [then[k][0] - now[k][0] for k in self.outputs]]), up
 
+    def on_branch_at(self, p: ContinuationPoint, H_p: int, H: int) -> bool:
+        """Whether p, solved at H_p, solves the equations at H too (its coefficients resized, as well
+        as it solved its own: to the Newton tolerance or its residual): a stuck stretch has no harmonics above the first in its contact forces,
+        and is the same branch at every H."""
+        key = (id(p), H)  # (the point is kept with its answer: its id is not reused meanwhile)
+        if key not in self._on_branch:
+            if H_p == H:
+                self._on_branch[key] = (p, True)
+            else:
+                pb = self.problem_at(H)
+                x = resize(p.x, self.q(H), H)
+                if pb.adaptation is not None:
+                    pb.adaptation.restore(pb.adaptation.state_of(x))
+                R = pb.evaluate(x, p.lam, jacobian=False).R
+                r = pb.scales(self.omega_start, self.omega_end).r
+                self._on_branch[key] = (p, bool(R.size == 0 or np.max(np.abs(R)) / r <= max(self.options.newton.tol, p.residual)))
+        return self._on_branch[key][1]
+
+    def traced_at(self, H: int) -> list[ContinuationPoint]:
+        """The points before the last that the retrace rule (ContinuationOptions.retrace_tol) sees as
+        the branch at H, in order, resized to H: those that solve the equations at H (on_branch_at).
+        Those solved at another H and not solving these are near this branch but not on it, and a
+        fold of this branch passing near them is no step back; a stuck stretch solved at a lower H is
+        this branch, and a step back along it is one (on the paper's beam at 3 N, sampled AFT, the
+        branch raised to H = 17 where separation starts turned back at the corner and went down the
+        stuck flank solved at H = 3, to 785 rad/s).  The points skipped leave a chord: they lie
+        where the branches at the two H part, within the steps either side."""
+        return [p if self.H_of[j] == H else replace(p, x=resize(p.x, self.q(H), H))
+                for j, p in enumerate(self.pts[:-1]) if self.on_branch_at(p, self.H_of[j], H)]
+
     def raised(self, want: int, ready: ContinuationPoint | None) -> ContinuationPoint | None:
         """The branch at H = want (or more, until the estimate meets the target) from its last point,
         else from points further back (1, 2, 4, ... before it), where the response is nearer the one
@@ -305,6 +337,7 @@ class _Tracer:
                     break
                 H_try = min(H_try + ad.step, ad.H_max)
             if new is not None:
+                self.lifted = (pts[i], pts[i - 1] if i > 0 else None)
                 del pts[i + 1:], self.H_of[i + 1:], self.check[i + 1:]
                 return new
         return None
@@ -379,12 +412,6 @@ class _Tracer:
                 opts = self.options
                 cont = replace(opts, max_points=max(2, opts.max_points - len(pts)),
                                time_limit=None if opts.time_limit is None else max(opts.time_limit - used, 0.0))
-                # the retrace rule (ContinuationOptions.retrace_tol) sees the points solved at this H
-                # since it was taken: those before are solutions of other equations, near this branch
-                # but not on it, and a fold of this branch passing near them is no step back
-                k = len(self.H_of) - 1
-                while k > 0 and self.H_of[k - 1] == H:
-                    k -= 1
                 part: dict = {}
                 change, ready = None, None
                 try:
@@ -392,7 +419,7 @@ class _Tracer:
                                     pts[-1].lam if pts else self.omega_start, self.omega_end, x_scale=sc.x,
                                     lam_scale=self.lam_scale, r_scale=sc.r, options=cont, callback=cb,
                                     extra=self.record_at(pb), adapt=pb.adaptation, stats=part, resume=heading,
-                                    traced=pts[max(k, 0):-1] if pts else [])
+                                    traced=self.traced_at(H))
                 except _Change as exc:
                     change, ready = exc.H, exc.point
                 except ContinuationError as exc:
@@ -405,6 +432,7 @@ class _Tracer:
                 if change is None:
                     break
                 here, n = pts[-1], len(pts)
+                self.lifted = (here, pts[-2] if n >= 2 else None)
                 if change > H:
                     new = self.raised(change, ready)
                     if new is None:
@@ -432,9 +460,15 @@ class _Tracer:
                     H = H_new
                 if self.past(pts[-1]):
                     break
-                # the heading: the secant of the last step, in the coefficients of H
-                heading = (((pts[-1].x - resize(pts[-2].x, self.q(H), H), pts[-1].lam - pts[-2].lam),
-                            max(pts[-1].ds, self.options.ds_min)) if len(pts) >= 2 else None)
+                # the heading: the secant of the branch's last step before H changed, in the
+                # coefficients of H.  Not the secant to the point solved at the new H: the jump between
+                # the branches at the two H can be larger than the step, and turn it back (on the
+                # paper's beam at 3 N, sampled AFT, the point lifted to H = 5 where separation starts
+                # lay 0.015 rad/s below the one before it, and the branch went back down its stuck
+                # flank to 785 rad/s)
+                old, prev = self.lifted
+                heading = (((resize(old.x, self.q(H), H) - resize(prev.x, self.q(H), H), old.lam - prev.lam),
+                            max(pts[-1].ds, self.options.ds_min)) if prev is not None else None)
         except KeyboardInterrupt as exc:  # (Ctrl-C while a point is solved at another H)
             if not pts:
                 raise
