@@ -33,7 +33,7 @@ def _reduction(args, scene, method: str | None = None, *,
     chosen = scene.reduction.method if method is None else method
     for flag, value in (("--modes", args.modes), ("--tvd", args.tvd)):
         lowest = 1 if flag == "--modes" and chosen in MODAL else 0
-        if value is not None and value < lowest:
+        if value is not None and value < 0:  # (0 where the method needs more: rom.check_options says why)
             raise RomError(f"{flag} = {value}: must be >= {lowest}"
                            + (f" ({chosen} needs at least one vibration mode)" if lowest else ""))
     return reduction_of(scene, method, modes=args.modes, tvd=args.tvd, tvd_kind=args.tvd_kind, offline=offline)

@@ -271,6 +271,31 @@ def test_a_signal_keeps_a_continuum_sweeps_points(tmp_path, name, code):
     assert s["num_points"] >= 20
 
 
+@pytest.mark.parametrize("ignored", [True, False])
+def test_sigint_after_gmsh_is_what_it_was_before(ignored):
+    """gmsh sets SIGINT to its default action when imported; jointfem puts back the action the
+    process started with: Python's KeyboardInterrupt, or ignored where it started ignored (nohup,
+    a shell's background job), as the command line's policy has it (issue 50: a continuum run
+    reacted to a SIGINT it had been started to ignore)."""
+    pytest.importorskip("gmsh")
+    import signal
+
+    child = ("import os, signal, time\n"
+             "from jointfem.fem.geometry import ensure_gmsh\n"
+             "ensure_gmsh()\n"
+             "h = signal.getsignal(signal.SIGINT)\n"
+             "print('ignored' if h is signal.SIG_IGN else 'python' if h is signal.default_int_handler else repr(h))\n"
+             "try:\n"
+             "    os.kill(os.getpid(), signal.SIGINT); time.sleep(0.5); print('alive')\n"
+             "except KeyboardInterrupt:\n"
+             "    print('interrupted')\n")
+    action = signal.SIG_IGN if ignored else signal.SIG_DFL  # (SIG_DFL: Python installs its own handler)
+    r = subprocess.run([sys.executable, "-c", child], capture_output=True, text=True, timeout=120, env=dict(os.environ),
+                       preexec_fn=lambda: signal.signal(signal.SIGINT, action))
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert r.stdout.split() == (["ignored", "alive"] if ignored else ["python", "interrupted"]), r.stdout + r.stderr[-2000:]
+
+
 def test_the_signal_policy_is_main_s_alone(tmp_path):
     """cli.main() called from a program (a test, a script) puts back the SIGTERM and SIGHUP handlers
     it found when it returns: the policy is the command's, not the caller's (the suite's own

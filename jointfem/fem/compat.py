@@ -188,14 +188,27 @@ def assemble_vector(form):
     return b.array.copy()
 
 
+def _sigint_action():
+    import signal
+
+    return signal.getsignal(signal.SIGINT)
+
+
+# SIGINT's action before any library here could change it (this module is imported before gmsh):
+# ignored where the process was started so (`nohup`, a non-interactive shell's `cmd &`)
+_SIGINT_AT_START = _sigint_action()
+
+
 def restore_sigint() -> None:
-    """Python's own SIGINT handler (KeyboardInterrupt) back after gmsh: gmsh 4.8's module sets SIGINT
-    to SIG_DFL when it is imported (later releases in initialize unless interruptible=False), so that
-    Ctrl-C killed the process and a sweep lost its converged points (issue 50).  Only where gmsh left
-    the default action (a handler someone installed on purpose stays), and only in the main thread."""
+    """SIGINT's action back after gmsh: gmsh 4.8's module sets SIGINT to SIG_DFL when it is imported
+    (later releases in initialize unless interruptible=False), so that Ctrl-C killed the process and
+    a sweep lost its converged points (issue 50).  Python's handler (KeyboardInterrupt) is put back,
+    or SIG_IGN where the process started with SIGINT ignored (it stays ignored, as the command
+    line's policy has it).  Only where gmsh left the default action or a handler of its own (a
+    handler someone installed on purpose stays), and only in the main thread."""
     import signal
     import threading
 
-    if threading.current_thread() is threading.main_thread() and signal.getsignal(signal.SIGINT) in (
-            signal.SIG_DFL, None):
-        signal.signal(signal.SIGINT, signal.default_int_handler)
+    if threading.current_thread() is threading.main_thread() and _sigint_action() in (signal.SIG_DFL, None):
+        signal.signal(signal.SIGINT, signal.SIG_IGN if _SIGINT_AT_START is signal.SIG_IGN
+                      else signal.default_int_handler)

@@ -122,9 +122,9 @@ _GMSH_READY = False
 def ensure_gmsh():
     """Initialise gmsh once per process (gmsh 4.8 has no isInitialized), silently."""
     global _GMSH_READY
-    import gmsh
+    from . import compat  # (first: it notes SIGINT's action before gmsh changes it)
 
-    from . import compat
+    import gmsh
 
     if not _GMSH_READY:
         gmsh.initialize(readConfigFiles=False)
