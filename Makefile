@@ -8,7 +8,8 @@ setup:
 	@bash tools/setup.sh
 
 # the beam at 3 N converged (harmonics chosen along the branch, exact condensation, every point's
-# stability; demos/beam2d_converged.toml), then its three forcing levels at the paper's H = 5
+# stability; demos/beam2d_converged.toml), then its friction-dominated variant at three forcing
+# levels, converged the same way (demos/jointed_beam_levels.py)
 demo: setup
 	$(PY) -m jointfem frf demos/beam2d_converged.toml --out results/beam2d_converged
 	$(PY) demos/jointed_beam_levels.py --out results/beam2d_levels
