@@ -356,3 +356,41 @@ def test_the_exact_condensation_leaves_stability_out_unless_asked():
     frf = compute_frf(exact, SweepOptions(0.9, 1.2, Harmonics(3, 64)))
     assert frf.info["stability"].startswith("not computed: the exact condensation's stability is the full model's")
     assert frf.stable is None
+
+
+def test_the_exponent_count_of_a_large_sparse_mass_needs_no_dense_svd(monkeypatch):
+    """count_exponents: 2 per coordinate with mass, 1 per massless damped direction.  Above
+    COUNT_DENSE coordinates a sparse positive definite M is recognised by the inertia of a sparse
+    LDL^T, without the dense SVD (minutes for a continuum's 10k DOFs, issue 50); a singular one
+    (a zero on the diagonal, or rank-deficient without one) gets the dense count, the same as
+    before."""
+    from jointfem.hbm import problem
+
+    n = 2 * problem.COUNT_DENSE
+    rng = np.random.default_rng(3)
+    # a consistent-mass-like SPD matrix: a 1D chain's banded mass, each row dominated by its diagonal
+    M = sp.diags([np.full(n - 1, 1.0), np.full(n, 4.0) + rng.random(n), np.full(n - 1, 1.0)], [-1, 0, 1], format="csr")
+    D = 1e-3 * M
+    dense = problem.count_exponents(M.toarray(), D.toarray())
+    assert dense == 2 * n
+
+    def no_svd(*args, **kwargs):
+        raise AssertionError("dense SVD")
+
+    with monkeypatch.context() as m:
+        m.setattr(problem.np.linalg, "svd", no_svd)
+        assert problem.count_exponents(M, D) == 2 * n
+    # massless coordinates: 10 zero rows and columns of M, 4 of them damped
+    keep = np.ones(n)
+    keep[:10] = 0.0
+    Ms = sp.diags(keep) @ M @ sp.diags(keep)
+    Ds = sp.lil_matrix((n, n))
+    for i in range(4):
+        Ds[i, i] = 1.0
+    assert problem.count_exponents(Ms.tocsr(), Ds.tocsr()) == 2 * (n - 10) + 4
+    # rank-deficient without a zero on the diagonal: M = B B^T of rank n - 1 (one pair of equal rows)
+    B = M.tolil()
+    B[1, :] = B[0, :]
+    Mr = (B @ B.T).tocsr()
+    assert np.all(Mr.diagonal() > 0)
+    assert problem.count_exponents(Mr, sp.csr_matrix((n, n))) == problem.count_exponents(Mr.toarray(), np.zeros((n, n))) == 2 * (n - 1)

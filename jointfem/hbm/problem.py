@@ -233,9 +233,23 @@ class KeepsLastEvaluation:
         return ev
 
 
+COUNT_DENSE = 500  # up to this many coordinates the rank of M is taken from a dense SVD
+
+
 def count_exponents(M, D) -> int:
     """Floquet exponents of M u'' + D u' + ...: two per coordinate with mass (rank M), one per
-    massless direction with damping (rank of D on the null space of M)."""
+    massless direction with damping (rank of D on the null space of M).  A sparse M (semi-definite,
+    as a model's is) above COUNT_DENSE coordinates without a zero on its diagonal is first tested
+    for a null space by the inertia of a sparse LDL^T of M - 1e-12 |M| I (linalg.eigenvalues_below,
+    the dense SVD's threshold): a continuum's consistent mass has none, and the dense SVD of its
+    10k DOFs took minutes before the first point (issue 50, item 2: SIGTERM waited 195 s for it)."""
+    n = M.shape[0]
+    if sp.issparse(M) and n > COUNT_DENSE and np.all(M.diagonal() > 0):
+        from ..linalg import eigenvalues_below
+
+        gershgorin = float(abs(M).sum(axis=1).max())  # >= its largest eigenvalue
+        if eigenvalues_below(M, 1e-12 * gershgorin) == 0:
+            return 2 * n
     Md = np.asarray(M.toarray() if sp.issparse(M) else M, dtype=float)
     Dd = np.asarray(D.toarray() if sp.issparse(D) else D, dtype=float)
     if not Md.size:
