@@ -177,7 +177,7 @@ def iteration_estimate(model, harmonics: Harmonics, omega: float, *, enough: flo
     proportion) until one takes ``enough`` seconds, then t ~ (2H+1)^p with p from the last two
     probes (clamped to [2, 4]; it grows with H, so this is an estimate from below).  None when H is
     small enough to need none."""
-    import scipy.sparse.linalg as spla
+    from .linalg import sparse_lu
 
     if harmonics.H <= PROBE_ABOVE_H:
         return None
@@ -191,7 +191,7 @@ def iteration_estimate(model, harmonics: Harmonics, omega: float, *, enough: flo
         t0 = time.perf_counter()
         ev = problem.evaluate(x, omega, jacobian=True)
         if sp.issparse(ev.J):
-            spla.splu(ev.J.tocsc())
+            sparse_lu(ev.J)
         else:
             np.linalg.solve(np.asarray(ev.J), ev.R)
         probes.append((h.num_hc, time.perf_counter() - t0))

@@ -327,6 +327,16 @@ def finite_frequencies(K, M, num: int, *, what: str = "model", at_most: bool = F
     return np.sqrt(positive[:num]), negative
 
 
+def sparse_lu(A):
+    """SuperLU's factors of a sparse A, ordered on the pattern of A + A^T (minimum degree): the
+    matrices factorised here are structurally symmetric (stiffness and mass, a harmonic balance
+    Jacobian with its harmonics' coupling, contact blocks and bordering row and column), and the
+    column ordering SuperLU takes by default (COLAMD) filled the factors of the 2D lap joint's
+    full-order Jacobian 4.4 times as much (5041 unknowns: 1.23e6 against 2.8e5 nonzeros; a sweep's
+    factorisations took 32 s where they now take 3.3 s)."""
+    return spla.splu(sp.csc_matrix(A), permc_spec="MMD_AT_PLUS_A")
+
+
 def eigenvalues_below(A, bound: float) -> int | None:
     """How many eigenvalues of the sparse symmetric A are below ``bound``: the negative pivots of
     A - bound I = L D L^T (Sylvester's law of inertia).  SuperLU gives that factorisation when it
@@ -366,7 +376,7 @@ class Factorized:
         self.what = what
         A = sp.csc_matrix(A)
         try:
-            self._lu = spla.splu(A)
+            self._lu = sparse_lu(A)
         except RuntimeError as exc:
             raise LinAlgError(f"{what} is singular ({exc}): a substructure without supports "
                               f"(rigid-body modes) cannot be factorised") from exc

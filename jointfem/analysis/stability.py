@@ -42,6 +42,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from ..hbm.problem import Evaluation, Problem
+from ..linalg import sparse_lu
 
 STABILITY_RTOL = 1e-7  # stable when max Re s <= STABILITY_RTOL * omega (Hill's truncation and round-off)
 # first-order unknowns up to which every exponent is computed densely.  Above it the Arnoldi path
@@ -162,7 +163,7 @@ def with_memory(J, d1, d2, correction, s_hill: np.ndarray, omega: float) -> np.n
 
         def factor(A):
             try:
-                lu = spla.splu(sp.csc_matrix(A))
+                lu = sparse_lu(A)
             except RuntimeError as exc:  # SuperLU: "Factor is exactly singular"
                 raise np.linalg.LinAlgError(str(exc)) from exc
             return lambda v, trans="N": lu.solve(v, trans=trans)
@@ -276,7 +277,7 @@ def arnoldi_near(J, d1, d2, omega: float, *, radius: float | None = None,
     d1 = d1.tocsr() if sp.issparse(d1) else sp.csr_matrix(d1)
     d2 = d2.tocsr() if sp.issparse(d2) else sp.csr_matrix(d2)
     if sparse:
-        lu = spla.splu((J + sigma * d1 + sigma**2 * d2).tocsc())
+        lu = sparse_lu(J + sigma * d1 + sigma**2 * d2)
         solve = lu.solve
     else:
         Q = np.asarray(J, dtype=float) + (sigma * d1 + sigma**2 * d2).toarray()

@@ -145,10 +145,16 @@ class ContinuationOptions:
     newton: NewtonOptions = field(default_factory=NewtonOptions)
 
 
+def sparse_lu(A):
+    """SuperLU's factors ordered on the pattern of A + A^T, as jointfem.linalg.sparse_lu (which says
+    why; this layer imports nothing of jointfem)."""
+    return spla.splu(A.tocsc(), permc_spec="MMD_AT_PLUS_A")
+
+
 def linear_solve(A, b):
     """A x = b for a dense or sparse A (SuperLU)."""
     if sp.issparse(A):
-        return spla.splu(A.tocsc()).solve(b)
+        return sparse_lu(A).solve(b)
     return np.linalg.solve(A, b)
 
 
@@ -417,7 +423,7 @@ def _parity(perm) -> int:
 def _solve_with_sign(A, b):
     """x = A^-1 b and the sign of det A, from the same LU factors."""
     if sp.issparse(A):
-        lu = spla.splu(A.tocsc())
+        lu = sparse_lu(A)
         d = lu.U.diagonal()
         return lu.solve(b), int(np.prod(np.sign(d))) * _parity(lu.perm_r) * _parity(lu.perm_c)
     lu, piv = sla.lu_factor(A)
