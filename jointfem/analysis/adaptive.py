@@ -281,8 +281,8 @@ class _Tracer:
 
     def on_branch_at(self, p: ContinuationPoint, H_p: int, H: int) -> bool:
         """Whether p, solved at H_p, solves the equations at H too (its coefficients resized, as well
-        as it solved its own: to the Newton tolerance or its residual): a stuck stretch has no harmonics above the first in its contact forces,
-        and is the same branch at every H."""
+        as it solved its own: to the Newton tolerance or its residual): a stuck stretch has no
+        harmonics above the first in its contact forces, and is the same branch at every H."""
         key = (id(p), H)  # (the point is kept with its answer: its id is not reused meanwhile)
         if key not in self._on_branch:
             if H_p == H:
@@ -294,7 +294,8 @@ class _Tracer:
                     pb.adaptation.restore(pb.adaptation.state_of(x))
                 R = pb.evaluate(x, p.lam, jacobian=False).R
                 r = pb.scales(self.omega_start, self.omega_end).r
-                self._on_branch[key] = (p, bool(R.size == 0 or np.max(np.abs(R)) / r <= max(self.options.newton.tol, p.residual)))
+                tol = max(self.options.newton.tol, p.residual)
+                self._on_branch[key] = (p, bool(R.size == 0 or np.max(np.abs(R)) / r <= tol))
         return self._on_branch[key][1]
 
     def traced_at(self, H: int) -> list[ContinuationPoint]:
