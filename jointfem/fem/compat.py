@@ -55,15 +55,15 @@ def quiet_jit():
 def import_dolfinx():
     """Import the FEniCSx stack with a clear error when it is missing."""
     try:
-        import dolfinx  # noqa: F401
-        import dolfinx.fem.petsc  # noqa: F401
-        import dolfinx.io  # noqa: F401
-        import ufl  # noqa: F401
-        from mpi4py import MPI  # noqa: F401
+        with sigint_kept():  # (dolfinx.io may import gmsh)
+            import dolfinx  # noqa: F401
+            import dolfinx.fem.petsc  # noqa: F401
+            import dolfinx.io  # noqa: F401
+            import ufl  # noqa: F401
+            from mpi4py import MPI  # noqa: F401
     except ImportError as exc:  # pragma: no cover - depends on the machine
         raise RuntimeError("the continuum models need dolfinx, ufl and mpi4py (Debian: python3-dolfinx; "
                            "run `make setup`)") from exc
-    restore_sigint()  # (dolfinx.io may import gmsh)
     return dolfinx
 
 
@@ -197,6 +197,26 @@ def _sigint_action():
 # SIGINT's action before any library here could change it (this module is imported before gmsh):
 # ignored where the process was started so (`nohup`, a non-interactive shell's `cmd &`)
 _SIGINT_AT_START = _sigint_action()
+
+
+@contextlib.contextmanager
+def sigint_kept():
+    """Around an import or call that may take SIGINT's action (gmsh): SIGINT is blocked meanwhile and
+    its action put back (restore_sigint) before it is unblocked, so that a SIGINT arriving in
+    between meets the action the process had, not gmsh's default (a new user's SIGINT 1.2 s into a
+    run started with it ignored killed the process, in the 0.4 s between gmsh's import and the
+    restore).  Only in the main thread, where signals are handled."""
+    import signal
+    import threading
+
+    main = threading.current_thread() is threading.main_thread()
+    before = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT}) if main else None
+    try:
+        yield
+    finally:
+        restore_sigint()
+        if main:
+            signal.pthread_sigmask(signal.SIG_SETMASK, before)
 
 
 def restore_sigint() -> None:

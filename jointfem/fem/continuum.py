@@ -226,14 +226,13 @@ class Assembled:
 def assemble(spec: ContinuumSpec, comm=None) -> Assembled:
     """Stages 1-2: gmsh on rank 0, the mesh distributed by dolfinx, K and M assembled by dolfinx."""
     compat.import_dolfinx()
-    import gmsh
+    gmsh = geo.ensure_gmsh()  # (it imports gmsh with SIGINT's action kept)
     import ufl
     from mpi4py import MPI
 
     comm = comm or MPI.COMM_WORLD
     layout = spec.layout()
     t0 = time.perf_counter()
-    geo.ensure_gmsh()
     try:
         if comm.rank == 0:
             geo.build(layout, spec.size, size_normal=spec.size_normal, structured=spec.structured,

@@ -124,13 +124,13 @@ def ensure_gmsh():
     global _GMSH_READY
     from . import compat  # (first: it notes SIGINT's action before gmsh changes it)
 
-    import gmsh
+    with compat.sigint_kept():
+        import gmsh
 
-    if not _GMSH_READY:
-        gmsh.initialize(readConfigFiles=False)
-        gmsh.option.setNumber("General.Terminal", 0)
-        _GMSH_READY = True
-    compat.restore_sigint()
+        if not _GMSH_READY:
+            gmsh.initialize(readConfigFiles=False)
+            gmsh.option.setNumber("General.Terminal", 0)
+            _GMSH_READY = True
     return gmsh
 
 
