@@ -112,7 +112,7 @@ def run(out: Path, *, coarse: bool = False, progress: bool = True, scene: Path =
         folder = out / label.replace("-", "_")
         summary = save_frf(frf, folder, summary={"scene": str(scene.path), "level": label, "force_N": force,
                                                  "method": scene.reduction.method, "num_dofs": structure.num_dofs})
-        plot_frf(frf, folder / "frf.png", title=f"jointed beam, {label}, F = {force} N")
+        plot_frf(frf, folder / "frf.png", title=f"jointed beam, {label}, F = {force:.4g} N")
         dof = structure.outputs["b1.mid.uy"]
         lin = np.abs(structure.linear_response(frf.omega)[:, dof])
         report[label] = {
@@ -131,7 +131,10 @@ def run(out: Path, *, coarse: bool = False, progress: bool = True, scene: Path =
             "unstable_points": None if frf.stable is None else int((~np.asarray(frf.stable)).sum()),
         }
         curves.append((f"{label}, F = {force:.3f} N", dataclasses.replace(frf, U=frf.U / force)))
-    plot_levels(curves, "b1.mid.uy", out / "levels.png", title=f"jointed beam, {base.reduction.method}, 2nd bending mode")
+    how = (f"H = {base.solver.harmonics}" if not base.solver.harmonics_auto else
+           f"H chosen along each branch to {base.solver.amplitude_tol:.1%} of the amplitude")
+    plot_levels(curves, "b1.mid.uy", out / "levels.png",
+                title=f"jointed beam, 2nd bending mode\n{how}, {base.reduction.method}")
     (out / "levels.json").write_text(json.dumps(report, indent=2))
     # The demo checks itself.
     assert report["stuck"]["slip_share_max"] == 0 and report["stuck"]["separated_share_max"] == 0

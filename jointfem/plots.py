@@ -61,8 +61,9 @@ def plot_unconverged(ax, x, y, bad, *, label: str, **kw):
 
 
 def plot_branch(ax, x, y, stable, *, label: str, **kw):
-    """A branch as a line, solid where it is stable and dashed where it is not (both where the
-    stability is unknown: solid).  A segment is stable when both its end points are."""
+    """A branch as a line, solid where it is stable and dashed where it is not, each unstable point
+    marked (short unstable runs on a fold are shorter than a dash); solid where the stability is
+    unknown.  A segment is stable when both its end points are."""
     if stable is None:
         return ax.plot(x, y, label=label, **kw)[0]
     stable = np.asarray(stable, bool)
@@ -76,7 +77,8 @@ def plot_branch(ax, x, y, stable, *, label: str, **kw):
     if on_u.any():
         kw = dict(kw, color=line.get_color())
         kw.pop("ls", None)
-        ax.plot(x, np.where(on_u, y, np.nan), ls="--", label=f"{label} (unstable)", **kw)
+        ax.plot(x, np.where(on_u, y, np.nan), ls="--", marker="o", ms=2.5, markevery=list(np.flatnonzero(~stable)),
+                label=f"{label} (unstable)", **kw)
     return line
 
 

@@ -138,6 +138,8 @@ def test_unstable_parts_are_drawn_dashed(tmp_path):
     assert solid.get_linestyle() == "-" and dashed.get_linestyle() == "--"
     np.testing.assert_array_equal(np.isfinite(solid.get_ydata()), [True, True, True, False, False, False])
     np.testing.assert_array_equal(np.isfinite(dashed.get_ydata()), [False, False, True, True, True, True])
+    # each unstable point marked: a run of a few unstable points on a fold is shorter than a dash
+    assert dashed.get_marker() == "o" and list(dashed.get_markevery()) == [3, 4]
     plt.close(fig)
 
 
