@@ -220,6 +220,13 @@ def locate_peaks(problem: Problem, x: np.ndarray, lam: np.ndarray, residual: np.
         rtol = np.zeros(len(x)) if amplitude_rtol is None else np.asarray(amplitude_rtol)[:, j]
         peaks[name] = _locate(segments, records, dof, grid=grid, omega_rtol=omega_rtol, amplitude_rtol=rtol)
         peaks[name] = replace(peaks[name], solves=segments.solves - before)
+    # one warning per failure: outputs that move together (the two beams' middles) share their top
+    failed: dict[str, list[str]] = {}
+    for name, p in peaks.items():
+        if not p.located and not p.edge:
+            failed.setdefault(p.reason, []).append(name)
+    for reason, names in failed.items():
+        log.warning("peak of %s not located %s", ", ".join(names), reason)
     log.debug("peaks: %d solves, %d Newton iterations", segments.solves, segments.iterations)
     return peaks
 
@@ -391,8 +398,8 @@ def _locate(segments: _Segments, records, dof, *, grid: int, omega_rtol: float, 
             else:  # the cell that can reach highest is halved
                 value(float((at[c] + at[c + 1]) / 2))
     except (ConvergenceError, ContinuationError, np.linalg.LinAlgError, RuntimeError) as exc:
-        log.warning("peak not located between omega = %.9g and %.9g: %s", lam[lo], lam[hi], exc)
-        return Peak(float(lam[i]), float(amp[i]), located=False, reason=str(exc))
+        return Peak(float(lam[i]), float(amp[i]), located=False,
+                    reason=f"between omega = {lam[lo]:.9g} and {lam[hi]:.9g}: {exc}")
     return Peak(best[1], best[0], located=True, residual=best[2], x=np.array(best[3]), tolerance=gain - 1.0)
 
 
