@@ -332,8 +332,8 @@ def sparse_lu(A):
     matrices factorised here are structurally symmetric (stiffness and mass, a harmonic balance
     Jacobian with its harmonics' coupling, contact blocks and bordering row and column), and the
     column ordering SuperLU takes by default (COLAMD) filled the factors of the 2D lap joint's
-    full-order Jacobian 4.4 times as much (5041 unknowns: 1.23e6 against 2.8e5 nonzeros; a sweep's
-    factorisations took 32 s where they now take 3.3 s)."""
+    full-order Jacobian 4.4 to 29 times as much (5041 unknowns: 1.2e6 and 8.2e6 against 2.8e5
+    nonzeros), and its factorisations took 10 times as long (docs/benchmarks_lu_ordering.md)."""
     return spla.splu(sp.csc_matrix(A), permc_spec="MMD_AT_PLUS_A")
 
 

@@ -519,8 +519,8 @@ def continue_branch(fun: Callable, x0: np.ndarray, lam0: float, lam_end: float, 
 
     def stop(why: str):
         return ContinuationError(f"continuation stopped at lam = {mu * lam_scale:.9g} before reaching "
-                                 f"{lam_end:.9g}, after {len(traced) + len(points)} points and {counts['refused_steps']} "
-                                 f"refused steps: {why}", points=points)
+                                 f"{lam_end:.9g}, after {len(traced) + len(points)} points and "
+                                 f"{counts['refused_steps']} refused steps: {why}", points=points)
 
     turned = []  # the tangent's turns (deg) of the steps refused for it at this point
 
@@ -955,7 +955,7 @@ def continue_branch(fun: Callable, x0: np.ndarray, lam0: float, lam_end: float, 
     except KeyboardInterrupt as exc:
         # Ctrl-C (or SIGTERM, SIGHUP, which jointfem's command line raises as it): the points converged
         # so far are kept, as for any other stop
-        raise ContinuationError(f"continuation interrupted ({str(exc) or 'Ctrl-C'}) at lam = {points[-1].lam:.9g} after "
-                                f"{len(traced) + len(points)} points", points=points, interrupted=True) from None
+        raise ContinuationError(f"continuation interrupted ({str(exc) or 'Ctrl-C'}) at lam = {points[-1].lam:.9g} "
+                                f"after {len(traced) + len(points)} points", points=points, interrupted=True) from None
     log.debug("branch done: %d points, %s", len(points), counts)
     return points

@@ -203,9 +203,8 @@ _SIGINT_AT_START = _sigint_action()
 def sigint_kept():
     """Around an import or call that may take SIGINT's action (gmsh): SIGINT is blocked meanwhile and
     its action put back (restore_sigint) before it is unblocked, so that a SIGINT arriving in
-    between meets the action the process had, not gmsh's default (a new user's SIGINT 1.2 s into a
-    run started with it ignored killed the process, in the 0.4 s between gmsh's import and the
-    restore).  Only in the main thread, where signals are handled."""
+    between meets the action the process had, not gmsh's default (which kills the process: gmsh's
+    import and initialise take 0.4 s).  Only in the main thread, where signals are handled."""
     import signal
     import threading
 

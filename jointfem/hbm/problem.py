@@ -241,8 +241,8 @@ def count_exponents(M, D) -> int:
     massless direction with damping (rank of D on the null space of M).  A sparse M (semi-definite,
     as a model's is) above COUNT_DENSE coordinates without a zero on its diagonal is first tested
     for a null space by the inertia of a sparse LDL^T of M - 1e-12 |M| I (linalg.eigenvalues_below,
-    the dense SVD's threshold): a continuum's consistent mass has none, and the dense SVD of its
-    10k DOFs took minutes before the first point (issue 50, item 2: SIGTERM waited 195 s for it)."""
+    the dense SVD's threshold): a continuum's consistent mass has none, and a dense SVD of its 10k
+    DOFs takes minutes, during which no signal is handled."""
     n = M.shape[0]
     if sp.issparse(M) and n > COUNT_DENSE and np.all(M.diagonal() > 0):
         from ..linalg import eigenvalues_below
