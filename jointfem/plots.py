@@ -20,16 +20,15 @@ def pyplot():
     return plt
 
 
-def finish(fig, ax, path: Path, *, title: str = "", legend_size: int = 8) -> Path:
-    """Grid, legend and title on ``ax``, then save ``fig`` as a PNG and close it."""
+def finish(fig, ax, path: Path, *, title: str = "", legend_size: int = 8, title_size: float | None = None,
+           dpi: int = 120) -> Path:
+    """Grid, legend and title on ``ax``, then save ``fig`` as a PNG and close it (write_png)."""
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=legend_size)
     if title:
-        ax.set_title(title)
+        ax.set_title(title, **({} if title_size is None else {"fontsize": title_size}))
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    pyplot().close(fig)
-    return Path(path)
+    return write_png(fig, path, dpi=dpi)
 
 
 def readable_axes(ax, *, hz: str | None = "x") -> None:
@@ -151,10 +150,7 @@ def plot_frf(frf: FrequencyResponse, path: Path, *, title: str = "", harmonic_to
             ax3.legend(fontsize=7, loc="center right")
     axes[-1, 0].set_xlabel("frequency [Hz]")
     fig.tight_layout()
-    path = Path(path)
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return path
+    return write_png(fig, path, dpi=120)
 
 
 def plot_levels(curves: list[tuple[str, FrequencyResponse]], output: str, path: Path, *, title: str = "",
@@ -235,11 +231,7 @@ def plot_force(response, force_N: float, path: Path, *, title: str = "") -> Path
     ax.set_xlabel("force amplitude [N]")
     ax.set_ylabel("first-harmonic amplitude [m]")
     readable_axes(ax, hz=None)
-    ax.set_title(title, fontsize=10)
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    return write_png(fig, path, dpi=100)
+    return finish(fig, ax, path, title=title, title_size=10, dpi=100)
 
 
 def plot_backbone(bb, path: Path, *, title: str = "") -> Path:
@@ -272,10 +264,7 @@ def plot_backbone(bb, path: Path, *, title: str = "") -> Path:
         row.grid(True, which="both", alpha=0.3)
     axes[-1, 0].set_xlabel(f"first-harmonic amplitude at {bb.output} [m]")
     fig.tight_layout()
-    path = Path(path)
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return path
+    return write_png(fig, path, dpi=120)
 
 
 def plot_compare_backbones(results, path: Path, *, title: str = "") -> Path:
